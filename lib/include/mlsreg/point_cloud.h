@@ -1,0 +1,34 @@
+// PointCloud: the validated in-memory form of a scan.
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <vector>
+
+#include <Eigen/Core>
+#include "absl/status/status.h"
+
+namespace mlsreg {
+
+using Vec3 = Eigen::Vector3d;
+
+// Positions (and optionally normals) of one scan, in double precision, contiguous.
+struct PointCloud {
+  std::vector<Vec3> points;
+  // Empty, or one unit normal per point.
+  std::vector<Vec3> normals;
+  // The sensor origin in this cloud's frame, when the file says where it was (PCD VIEWPOINT, or
+  // set by the caller). Normals are oriented toward it when known.
+  std::optional<Vec3> viewpoint;
+
+  std::size_t size() const { return points.size(); }
+  bool empty() const { return points.empty(); }
+  bool has_normals() const { return !normals.empty(); }
+};
+
+// Checks the invariants every consumer relies on: at least `min_points` points, all coordinates
+// finite, normals either absent or one per point and finite. The message names the first offending
+// point index.
+absl::Status ValidatePointCloud(const PointCloud& cloud, std::size_t min_points = 1);
+
+}  // namespace mlsreg

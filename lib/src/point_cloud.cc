@@ -1,0 +1,38 @@
+#include "mlsreg/point_cloud.h"
+
+#include "absl/strings/str_cat.h"
+
+namespace mlsreg {
+
+absl::Status ValidatePointCloud(const PointCloud& cloud, std::size_t min_points) {
+  if (cloud.size() < min_points) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("point cloud has ", cloud.size(), " points; at least ", min_points,
+                     " are required"));
+  }
+  for (std::size_t i = 0; i < cloud.points.size(); ++i) {
+    if (!cloud.points[i].allFinite()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("point ", i, " has a non-finite coordinate (NaN or Inf)"));
+    }
+  }
+  if (cloud.has_normals()) {
+    if (cloud.normals.size() != cloud.points.size()) {
+      return absl::InvalidArgumentError(absl::StrCat("point cloud has ", cloud.points.size(),
+                                                     " points but ", cloud.normals.size(),
+                                                     " normals"));
+    }
+    for (std::size_t i = 0; i < cloud.normals.size(); ++i) {
+      if (!cloud.normals[i].allFinite()) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("normal ", i, " has a non-finite component (NaN or Inf)"));
+      }
+    }
+  }
+  if (cloud.viewpoint && !cloud.viewpoint->allFinite()) {
+    return absl::InvalidArgumentError("viewpoint has a non-finite coordinate");
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace mlsreg
