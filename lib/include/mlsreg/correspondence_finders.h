@@ -1,0 +1,48 @@
+// The correspondence policies: closest point (CP) and MLS projection.
+#pragma once
+
+#include <vector>
+
+#include "mlsreg/correspondence.h"
+#include "mlsreg/mls_projector.h"
+#include "mlsreg/target.h"
+
+namespace mlsreg {
+
+// Classical ICP matching (paper Eq. 2): the nearest target sample, with the target's precomputed
+// normal and surface variation. Invalid where the target's local analysis failed.
+class ClosestPointFinder final : public CorrespondenceFinder {
+ public:
+  explicit ClosestPointFinder(const Target& target) : target_(target) {}
+  void Find(std::span<const Vec3> queries, std::span<Correspondence> out) override;
+  bool oriented_normals() const override { return target_.surface().oriented; }
+
+ private:
+  const Target& target_;
+};
+
+// MLS correspondences (paper Eq. 7): each query is projected onto the MLS surface of the target.
+// With warm starts, the projection of sample i starts from the query projected onto the tangent
+// plane of sample i's previous projection.
+class MlsCorrespondenceFinder final : public CorrespondenceFinder {
+ public:
+  MlsCorrespondenceFinder(const Target& target, const MlsOptions& options, bool warm_start);
+  void Find(std::span<const Vec3> queries, std::span<Correspondence> out) override;
+  bool oriented_normals() const override { return oriented_; }
+
+  // Status of each sample's last projection (for statistics and tests).
+  const std::vector<ProjectionStatus>& last_status() const { return status_; }
+  // Total Algorithm 1 iterations spent in the last Find call.
+  long last_iterations() const { return last_iterations_; }
+
+ private:
+  MlsProjector projector_;
+  bool warm_start_;
+  bool oriented_;
+  MlsProjector::Workspace workspace_;
+  std::vector<MlsProjection> previous_;
+  std::vector<ProjectionStatus> status_;
+  long last_iterations_ = 0;
+};
+
+}  // namespace mlsreg

@@ -1,0 +1,46 @@
+// HeightFieldFit: weighted least-squares bivariate polynomial f = g(x, y) over a reference plane.
+#pragma once
+
+#include <array>
+
+#include <Eigen/Core>
+
+namespace mlsreg {
+
+// The fitted polynomial g(x, y) = sum c_k m_k(x, y) with monomials, in this order,
+// 1, x, y, x^2, xy, y^2, x^3, x^2 y, x y^2, y^3 (the first (deg+1)(deg+2)/2 are used).
+struct HeightField {
+  int degree = 0;
+  std::array<double, 10> coefficients{};
+
+  double ValueAtOrigin() const { return coefficients[0]; }
+  // Partial derivatives at the origin (zero for degree 0).
+  double SlopeX() const { return coefficients[1]; }
+  double SlopeY() const { return coefficients[2]; }
+  double Evaluate(double x, double y) const;
+};
+
+constexpr int kMaxHeightFieldDegree = 3;
+constexpr int MonomialCount(int degree) { return (degree + 1) * (degree + 2) / 2; }
+
+// Accumulate weighted samples (x, y, f), then Finalize. Coordinates should be scaled to O(1)
+// (e.g. divided by the support radius) for conditioning. Finalize tries the requested degree and
+// falls back to lower degrees when there are too few samples or the system is ill-conditioned.
+// No heap allocation.
+class HeightFieldFit {
+ public:
+  explicit HeightFieldFit(int degree);
+
+  void Add(double x, double y, double f, double weight);
+
+  // False only if even degree 0 cannot be fitted (no positive weight).
+  bool Finalize(HeightField& out) const;
+
+ private:
+  int degree_;
+  int count_ = 0;
+  Eigen::Matrix<double, 10, 10> normal_matrix_ = Eigen::Matrix<double, 10, 10>::Zero();
+  Eigen::Matrix<double, 10, 1> rhs_ = Eigen::Matrix<double, 10, 1>::Zero();
+};
+
+}  // namespace mlsreg

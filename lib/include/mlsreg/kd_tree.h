@@ -1,0 +1,54 @@
+// KdTree: nearest-neighbour, k-nearest and radius queries over a fixed set of 3-D points.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <utility>
+#include <vector>
+
+#include "mlsreg/point_cloud.h"
+
+namespace mlsreg {
+
+// One neighbour found by a query: its index in the indexed point set and its squared distance.
+struct Neighbor {
+  std::uint32_t index = 0;
+  double distance_squared = 0.0;
+};
+
+// Reusable output buffer of radius queries; keep one per thread so queries do not allocate once
+// it has grown to the neighbourhood size.
+using RadiusNeighbors = std::vector<std::pair<std::uint32_t, double>>;
+
+// A kd-tree (nanoflann) over points owned by someone else. The points must outlive the tree and
+// must not be modified; moving the owning std::vector is fine (its buffer does not move).
+class KdTree {
+ public:
+  explicit KdTree(const std::vector<Vec3>& points);
+  ~KdTree();
+  KdTree(KdTree&&) noexcept;
+  KdTree& operator=(KdTree&&) noexcept;
+  KdTree(const KdTree&) = delete;
+  KdTree& operator=(const KdTree&) = delete;
+
+  std::size_t size() const;
+
+  // The closest indexed point to `query`. Requires a non-empty tree.
+  Neighbor Nearest(const Vec3& query) const;
+
+  // Up to k closest points, sorted by distance; returns how many were written.
+  std::size_t Knn(const Vec3& query, std::size_t k, std::uint32_t* indices,
+                  double* distances_squared) const;
+
+  // All points strictly closer than `radius` (unsorted). `out` is cleared first.
+  void Radius(const Vec3& query, double radius, RadiusNeighbors& out) const;
+
+  // Approximate heap bytes used by the index (not the points).
+  std::size_t MemoryBytes() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace mlsreg

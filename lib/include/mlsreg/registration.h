@@ -1,0 +1,114 @@
+// Registration: the one entry point the CLI, the evaluation harness and the server call.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string_view>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "mlsreg/correspondence_filter.h"
+#include "mlsreg/point_cloud.h"
+#include "mlsreg/sparse_icp.h"
+#include "mlsreg/target.h"
+#include "mlsreg/transform.h"
+
+namespace mlsreg {
+
+enum class Method {
+  kCpSicp,   // Sparse ICP with closest-point correspondences (paper: CP-SICP)
+  kMlsSicp,  // Sparse ICP with MLS correspondences (paper: MLS-SICP)
+};
+std::string_view MethodName(Method method);  // "cp-sicp", "mls-sicp"
+absl::StatusOr<Method> ParseMethod(std::string_view name);
+std::vector<Method> AllMethods();
+
+// Every length below is in units of the target's sampling distance d (paper Eq. 11).
+struct MlsParams {
+  double radius_d = 5.0;       // Wendland support r (paper Table 2: 5d, 8d for high noise)
+  int polynomial_degree = 3;   // paper Table 2: g = 3
+  int max_iterations = 20;     // paper Table 2
+  bool warm_start = true;      // start each projection from the previous one's tangent plane
+};
+
+struct FilterParams {
+  double min_normal_dot = 0.7;       // tau_N; <= -1 disables
+  double min_curvature_ratio = 0.75; // tau_H; 0 disables
+  double max_distance_d = 0.0;       // 0 disables
+};
+
+struct RegistrationOptions {
+  Method method = Method::kMlsSicp;
+  int num_samples = 2000;        // random source samples (paper: 1,000-2,000)
+  std::uint64_t seed = 1;        // subsampling seed
+  int max_iterations = 100;      // ICP iterations (paper Table 2)
+  // Converged when no source sample moved more than this during an ICP iteration.
+  double convergence_d = 1e-3;
+  // Sparse ICP runs on coordinates divided by this length (see SparseIcpOptions::length_unit);
+  // its stop threshold is convergence_d in the same units. With mu = 10, alpha = 1.2 and 10
+  // ADMM iterations, residuals beyond ~0.32 units start as outliers and beyond ~0.11 units end
+  // as outliers: 100 d puts that boundary at ~11 d, several times scanner noise.
+  double sicp_length_unit_d = 100.0;
+  SparseIcpOptions sicp;         // length_unit and stop are derived from the two fields above
+  MlsParams mls;
+  FilterParams filter;
+  int min_correspondences = 6;   // fewer accepted correspondences end the registration
+};
+
+// Validates every field; the message names it (e.g. "mls.radius_d must be in (0, 100]").
+absl::Status ValidateOptions(const RegistrationOptions& options);
+
+// Streamed once per ICP iteration.
+struct IterationReport {
+  int iteration = 0;                        // 1-based
+  Matrix4 transform = Matrix4::Identity();  // after this iteration's update
+  double rmse = 0.0;     // RMSE of this iteration's accepted correspondences (absolute units)
+  double rmse_d = 0.0;   // the same in units of d
+  CorrespondenceCounts counts;
+  int admm_iterations = 0;
+  double elapsed_seconds = 0.0;             // since Register was called
+};
+
+enum class Termination {
+  kConverged,               // samples stopped moving (convergence_d)
+  kMaxIterations,           // max_iterations reached
+  kCancelled,               // should_stop returned true
+  kTooFewCorrespondences,   // fewer than min_correspondences survived the filters
+};
+std::string_view TerminationName(Termination termination);
+
+// Wall time of the phases of paper Figure 6.
+struct PhaseTimings {
+  double preprocessing = 0.0;  // source analysis (the target's is cached in Target)
+  double subsampling = 0.0;
+  double matching = 0.0;       // correspondence search + filtering
+  double optimisation = 0.0;   // Sparse ICP ADMM
+  double total = 0.0;
+};
+
+struct RegistrationResult {
+  Matrix4 transform = Matrix4::Identity();  // maps source points into the target frame
+  bool converged = false;
+  Termination termination = Termination::kMaxIterations;
+  int iterations = 0;
+  std::vector<IterationReport> trace;
+  PhaseTimings timings;
+  double sampling_distance = 0.0;  // the target's d, the unit of every *_d field
+  int num_samples = 0;
+};
+
+struct RegistrationCallbacks {
+  std::function<void(const IterationReport&)> on_iteration;  // may be empty
+  std::function<bool()> should_stop;  // polled once per iteration; true cancels (may be empty)
+};
+
+// Registers `source` to `target` starting from `initial` (source -> target, rigid). Invalid input
+// (bad cloud, non-rigid initial transform, options out of range) gives InvalidArgument naming the
+// field; a registration that runs always returns a result, whatever its termination.
+absl::StatusOr<RegistrationResult> Register(const Target& target, const PointCloud& source,
+                                            const Matrix4& initial,
+                                            const RegistrationOptions& options,
+                                            const RegistrationCallbacks& callbacks = {});
+
+}  // namespace mlsreg

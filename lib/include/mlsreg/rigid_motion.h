@@ -1,0 +1,29 @@
+// Closed-form and linearised weighted rigid-motion estimators used inside Sparse ICP.
+#pragma once
+
+#include <span>
+
+#include <Eigen/Geometry>
+
+#include "mlsreg/point_cloud.h"
+
+namespace mlsreg {
+
+using RigidTransform = Eigen::Isometry3d;
+
+// Rotation exp([omega]x) (Rodrigues), exact for any angle.
+Eigen::Matrix3d ExpSo3(const Vec3& omega);
+
+// argmin_{R,t} sum_i w_i |R x_i + t - y_i|^2 (weighted Kabsch/Umeyama, det-corrected).
+// Entries with w_i = 0 are ignored; identity when the total weight is zero.
+RigidTransform PointToPointMotion(std::span<const Vec3> x, std::span<const Vec3> y,
+                                  std::span<const double> w);
+
+// One Gauss-Newton step of argmin_{R,t} sum_i w_i (n_i . (R x_i + t - y_i) - u_i)^2, linearised
+// in the rotation about the weighted centroid of x, with the rotation rebuilt by the exact SO(3)
+// exponential. Identity when the system is singular or the total weight is zero.
+RigidTransform PointToPlaneMotion(std::span<const Vec3> x, std::span<const Vec3> y,
+                                  std::span<const Vec3> n, std::span<const double> u,
+                                  std::span<const double> w);
+
+}  // namespace mlsreg

@@ -1,0 +1,33 @@
+// Per-point normals and surface variation from Wendland-weighted local PCA.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "mlsreg/kd_tree.h"
+#include "mlsreg/point_cloud.h"
+
+namespace mlsreg {
+
+// Normal and surface variation H (paper Eq. 8) at a set of points. `valid[i]` is 0 where the
+// neighbourhood was too small or degenerate; normal/curvature are then zero and must not be used.
+struct SurfaceProperties {
+  std::vector<Vec3> normals;
+  std::vector<double> curvature;
+  std::vector<std::uint8_t> valid;
+  // True when normals were oriented toward a known viewpoint, so their sign is meaningful.
+  bool oriented = false;
+
+  std::size_t size() const { return normals.size(); }
+};
+
+// Analyses `points[i]` for every i in `indices` (or every point when `indices` is empty) using all
+// neighbours within `radius`, weighted by the Wendland function. Normals point toward `viewpoint`
+// when it is given. Allocation happens once per call, not per point.
+SurfaceProperties AnalyzeSurface(const std::vector<Vec3>& points, const KdTree& tree, double radius,
+                                 const std::optional<Vec3>& viewpoint,
+                                 std::span<const std::uint32_t> indices = {});
+
+}  // namespace mlsreg

@@ -1,0 +1,49 @@
+// Target: a validated target cloud with everything registrations reuse, built once.
+#pragma once
+
+#include <memory>
+
+#include "absl/status/statusor.h"
+#include "mlsreg/kd_tree.h"
+#include "mlsreg/point_cloud.h"
+#include "mlsreg/surface_analysis.h"
+
+namespace mlsreg {
+
+struct TargetOptions {
+  // Radius of the Wendland-weighted PCA giving per-point normals and surface variation (used by
+  // closest-point correspondences and their filters), in units of the sampling distance d.
+  double analysis_radius_d = 5.0;
+  // Minimum number of points accepted.
+  std::size_t min_points = 10;
+};
+
+// Cloud + kd-tree + sampling distance + per-point surface properties. Immutable once built and
+// safe to share between concurrent registrations (all queries are const).
+class Target {
+ public:
+  static absl::StatusOr<std::shared_ptr<const Target>> Build(PointCloud cloud,
+                                                             const TargetOptions& options = {});
+
+  const PointCloud& cloud() const { return cloud_; }
+  const std::vector<Vec3>& points() const { return cloud_.points; }
+  const KdTree& tree() const { return *tree_; }
+  const SurfaceProperties& surface() const { return surface_; }
+  // Mean nearest-neighbour distance d (paper Eq. 11).
+  double sampling_distance() const { return sampling_distance_; }
+  const TargetOptions& options() const { return options_; }
+  double build_seconds() const { return build_seconds_; }
+  // Heap bytes held (points, normals, properties, index).
+  std::size_t MemoryBytes() const;
+
+ private:
+  Target() = default;
+  PointCloud cloud_;
+  std::unique_ptr<KdTree> tree_;
+  SurfaceProperties surface_;
+  double sampling_distance_ = 0.0;
+  TargetOptions options_;
+  double build_seconds_ = 0.0;
+};
+
+}  // namespace mlsreg

@@ -1,0 +1,68 @@
+#include "mlsreg/height_field_fit.h"
+
+#include <algorithm>
+
+#include <Eigen/Cholesky>
+
+namespace mlsreg {
+namespace {
+
+// Reciprocal condition number below which a degree is abandoned for the next lower one.
+constexpr double kMinRcond = 1e-10;
+
+Eigen::Matrix<double, 10, 1> Monomials(double x, double y) {
+  Eigen::Matrix<double, 10, 1> m;
+  m << 1.0, x, y, x * x, x * y, y * y, x * x * x, x * x * y, x * y * y, y * y * y;
+  return m;
+}
+
+template <int N>
+bool SolveLeading(const Eigen::Matrix<double, 10, 10>& a, const Eigen::Matrix<double, 10, 1>& b,
+                  std::array<double, 10>& coefficients) {
+  const Eigen::Matrix<double, N, N> block = a.template topLeftCorner<N, N>();
+  const Eigen::LDLT<Eigen::Matrix<double, N, N>> ldlt(block);
+  if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > kMinRcond)) return false;
+  const Eigen::Matrix<double, N, 1> c = ldlt.solve(b.template head<N>());
+  if (!c.allFinite()) return false;
+  coefficients.fill(0.0);
+  for (int k = 0; k < N; ++k) coefficients[k] = c[k];
+  return true;
+}
+
+}  // namespace
+
+double HeightField::Evaluate(double x, double y) const {
+  return Monomials(x, y).dot(Eigen::Map<const Eigen::Matrix<double, 10, 1>>(coefficients.data()));
+}
+
+HeightFieldFit::HeightFieldFit(int degree)
+    : degree_(std::clamp(degree, 0, kMaxHeightFieldDegree)) {}
+
+void HeightFieldFit::Add(double x, double y, double f, double weight) {
+  const Eigen::Matrix<double, 10, 1> m = Monomials(x, y);
+  normal_matrix_.selfadjointView<Eigen::Lower>().rankUpdate(m, weight);
+  rhs_.noalias() += (weight * f) * m;
+  ++count_;
+}
+
+bool HeightFieldFit::Finalize(HeightField& out) const {
+  const Eigen::Matrix<double, 10, 10> a = normal_matrix_.selfadjointView<Eigen::Lower>();
+  for (int degree = degree_; degree >= 0; --degree) {
+    // A polynomial with k coefficients needs at least k samples to be determined.
+    if (count_ < MonomialCount(degree)) continue;
+    bool solved = false;
+    switch (degree) {
+      case 3: solved = SolveLeading<10>(a, rhs_, out.coefficients); break;
+      case 2: solved = SolveLeading<6>(a, rhs_, out.coefficients); break;
+      case 1: solved = SolveLeading<3>(a, rhs_, out.coefficients); break;
+      default: solved = SolveLeading<1>(a, rhs_, out.coefficients); break;
+    }
+    if (solved) {
+      out.degree = degree;
+      return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace mlsreg

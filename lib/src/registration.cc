@@ -1,0 +1,246 @@
+#include "mlsreg/registration.h"
+
+#include <chrono>
+#include <cmath>
+#include <memory>
+
+#include "absl/strings/str_cat.h"
+#include "mlsreg/correspondence_finders.h"
+#include "mlsreg/kd_tree.h"
+#include "mlsreg/sampling.h"
+#include "mlsreg/surface_analysis.h"
+
+namespace mlsreg {
+
+std::string_view MethodName(Method method) {
+  switch (method) {
+    case Method::kCpSicp: return "cp-sicp";
+    case Method::kMlsSicp: return "mls-sicp";
+  }
+  return "unknown";
+}
+
+std::vector<Method> AllMethods() { return {Method::kCpSicp, Method::kMlsSicp}; }
+
+absl::StatusOr<Method> ParseMethod(std::string_view name) {
+  std::string known;
+  for (Method m : AllMethods()) {
+    if (name == MethodName(m)) return m;
+    if (!known.empty()) known += ", ";
+    known += MethodName(m);
+  }
+  return absl::InvalidArgumentError("method: unknown method '" + std::string(name) +
+                                    "' (known: " + known + ")");
+}
+
+std::string_view TerminationName(Termination termination) {
+  switch (termination) {
+    case Termination::kConverged: return "converged";
+    case Termination::kMaxIterations: return "max_iterations";
+    case Termination::kCancelled: return "cancelled";
+    case Termination::kTooFewCorrespondences: return "too_few_correspondences";
+  }
+  return "unknown";
+}
+
+absl::Status ValidateOptions(const RegistrationOptions& o) {
+  auto bad = [](const char* field, const char* rule) {
+    return absl::InvalidArgumentError(absl::StrCat(field, " ", rule));
+  };
+  if (o.num_samples < 3 || o.num_samples > 10'000'000) {
+    return bad("num_samples", "must be in [3, 10000000]");
+  }
+  if (o.max_iterations < 1 || o.max_iterations > 100'000) {
+    return bad("max_iterations", "must be in [1, 100000]");
+  }
+  if (!(o.convergence_d >= 0.0 && o.convergence_d <= 100.0)) {
+    return bad("convergence_d", "must be in [0, 100]");
+  }
+  if (!(o.sicp_length_unit_d > 0.0 && o.sicp_length_unit_d <= 1e6)) {
+    return bad("sicp_length_unit_d", "must be in (0, 1e6]");
+  }
+  if (!(o.mls.radius_d > 0.0 && o.mls.radius_d <= 100.0)) {
+    return bad("mls.radius_d", "must be in (0, 100]");
+  }
+  if (o.mls.polynomial_degree < 0 || o.mls.polynomial_degree > 3) {
+    return bad("mls.polynomial_degree", "must be in [0, 3]");
+  }
+  if (o.mls.max_iterations < 1 || o.mls.max_iterations > 1000) {
+    return bad("mls.max_iterations", "must be in [1, 1000]");
+  }
+  if (!(o.filter.min_normal_dot >= -1.0 && o.filter.min_normal_dot <= 1.0)) {
+    return bad("filter.min_normal_dot", "must be in [-1, 1]");
+  }
+  if (!(o.filter.min_curvature_ratio >= 0.0 && o.filter.min_curvature_ratio <= 1.0)) {
+    return bad("filter.min_curvature_ratio", "must be in [0, 1]");
+  }
+  if (!(o.filter.max_distance_d >= 0.0 && std::isfinite(o.filter.max_distance_d))) {
+    return bad("filter.max_distance_d", "must be >= 0 (0 disables)");
+  }
+  if (o.min_correspondences < 3) return bad("min_correspondences", "must be >= 3");
+  SparseIcpOptions sicp = o.sicp;
+  sicp.length_unit = 1.0;  // derived; validated above
+  return ValidateSparseIcpOptions(sicp);
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double Seconds(Clock::time_point since) {
+  return std::chrono::duration<double>(Clock::now() - since).count();
+}
+
+// The source side of a registration: random samples with their local surface properties.
+struct SourceSamples {
+  std::vector<Vec3> points;
+  SurfaceProperties surface;
+};
+
+std::unique_ptr<CorrespondenceFinder> MakeFinder(Method method, const Target& target,
+                                                 const RegistrationOptions& options) {
+  const double d = target.sampling_distance();
+  switch (method) {
+    case Method::kCpSicp: return std::make_unique<ClosestPointFinder>(target);
+    case Method::kMlsSicp: {
+      MlsOptions mls;
+      mls.radius = options.mls.radius_d * d;
+      mls.polynomial_degree = options.mls.polynomial_degree;
+      mls.max_iterations = options.mls.max_iterations;
+      return std::make_unique<MlsCorrespondenceFinder>(target, mls, options.mls.warm_start);
+    }
+  }
+  return nullptr;
+}
+
+// Radius of the source's local analysis: the scale at which the target side's curvature is
+// measured, so the curvature-ratio filter compares like with like.
+double AnalysisRadius(Method method, const Target& target, const RegistrationOptions& options) {
+  const double d = target.sampling_distance();
+  return method == Method::kMlsSicp ? options.mls.radius_d * d
+                                    : target.options().analysis_radius_d * d;
+}
+
+}  // namespace
+
+absl::StatusOr<RegistrationResult> Register(const Target& target, const PointCloud& source,
+                                            const Matrix4& initial,
+                                            const RegistrationOptions& options,
+                                            const RegistrationCallbacks& callbacks) {
+  const Clock::time_point start = Clock::now();
+  if (absl::Status s = ValidateOptions(options); !s.ok()) return s;
+  if (absl::Status s = ValidatePointCloud(source, 3); !s.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat("source: ", s.message()));
+  }
+  if (absl::Status s = CheckRigid(initial, "initial_transform"); !s.ok()) return s;
+
+  RegistrationResult result;
+  const double d = target.sampling_distance();
+  result.sampling_distance = d;
+
+  // Subsampling.
+  Clock::time_point phase = Clock::now();
+  const std::vector<std::uint32_t> indices =
+      RandomSubsample(source.size(), static_cast<std::size_t>(options.num_samples), options.seed);
+  SourceSamples samples;
+  samples.points.reserve(indices.size());
+  for (std::uint32_t i : indices) samples.points.push_back(source.points[i]);
+  result.num_samples = static_cast<int>(indices.size());
+  result.timings.subsampling = Seconds(phase);
+
+  // Preprocessing: source normals and surface variation at the samples.
+  phase = Clock::now();
+  const KdTree source_tree(source.points);
+  samples.surface = AnalyzeSurface(source.points, source_tree,
+                                   AnalysisRadius(options.method, target, options),
+                                   source.viewpoint, indices);
+  result.timings.preprocessing = Seconds(phase);
+
+  std::unique_ptr<CorrespondenceFinder> finder = MakeFinder(options.method, target, options);
+  CorrespondenceFilterOptions filter_options;
+  filter_options.min_normal_dot = options.filter.min_normal_dot;
+  filter_options.min_curvature_ratio = options.filter.min_curvature_ratio;
+  if (options.filter.max_distance_d > 0.0) {
+    filter_options.max_distance = options.filter.max_distance_d * d;
+  }
+  filter_options.source_oriented = samples.surface.oriented;
+  filter_options.target_oriented = finder->oriented_normals();
+  const CorrespondenceFilter filter(filter_options);
+
+  SparseIcpOptions sicp = options.sicp;
+  sicp.length_unit = options.sicp_length_unit_d * d;
+  sicp.stop = options.convergence_d / options.sicp_length_unit_d;
+  SparseIcpSolver solver(sicp);
+
+  // Per-iteration buffers, allocated once.
+  const std::size_t m = samples.points.size();
+  std::vector<Vec3> moved(m), moved_normals(m), before(m), partner_points(m), partner_normals(m);
+  std::vector<Correspondence> correspondences(m);
+  std::vector<std::uint8_t> accepted(m);
+  solver.Reset(m);
+
+  RigidTransform transform(Orthonormalize(initial));
+  const double convergence = options.convergence_d * d;
+  result.termination = Termination::kMaxIterations;
+  for (int iteration = 1; iteration <= options.max_iterations; ++iteration) {
+    if (callbacks.should_stop && callbacks.should_stop()) {
+      result.termination = Termination::kCancelled;
+      break;
+    }
+    phase = Clock::now();
+    for (std::size_t i = 0; i < m; ++i) {
+      moved[i] = transform * samples.points[i];
+      moved_normals[i] = transform.linear() * samples.surface.normals[i];
+    }
+    finder->Find(moved, correspondences);
+    IterationReport report;
+    report.iteration = iteration;
+    report.counts = filter.Apply(moved, moved_normals, samples.surface.curvature,
+                                 samples.surface.valid, correspondences, accepted);
+    double sum_squared = 0.0;
+    for (std::size_t i = 0; i < m; ++i) {
+      partner_points[i] = correspondences[i].point;
+      partner_normals[i] = correspondences[i].normal;
+      if (accepted[i]) sum_squared += (moved[i] - partner_points[i]).squaredNorm();
+    }
+    if (report.counts.matched > 0) {
+      report.rmse = std::sqrt(sum_squared / report.counts.matched);
+      report.rmse_d = report.rmse / d;
+    }
+    result.timings.matching += Seconds(phase);
+
+    bool converged = false;
+    if (report.counts.matched >= options.min_correspondences) {
+      phase = Clock::now();
+      before = moved;
+      const RigidTransform increment = solver.Step(moved, partner_points, partner_normals, accepted);
+      transform = increment * transform;
+      double max_move = 0.0;
+      for (std::size_t i = 0; i < m; ++i) {
+        max_move = std::max(max_move, (moved[i] - before[i]).squaredNorm());
+      }
+      converged = std::sqrt(max_move) < convergence;
+      report.admm_iterations = solver.last_outer_iterations();
+      result.timings.optimisation += Seconds(phase);
+    }
+
+    report.transform = transform.matrix();
+    report.elapsed_seconds = Seconds(start);
+    result.iterations = iteration;
+    result.trace.push_back(report);
+    if (callbacks.on_iteration) callbacks.on_iteration(report);
+    if (report.counts.matched < options.min_correspondences) {
+      result.termination = Termination::kTooFewCorrespondences;
+      break;
+    }
+    if (converged) {
+      result.termination = Termination::kConverged;
+      result.converged = true;
+      break;
+    }
+  }
+  result.transform = transform.matrix();
+  result.timings.total = Seconds(start);
+  return result;
+}
+
+}  // namespace mlsreg

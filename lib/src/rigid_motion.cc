@@ -1,0 +1,83 @@
+#include "mlsreg/rigid_motion.h"
+
+#include <cmath>
+
+#include <Eigen/Cholesky>
+#include <Eigen/SVD>
+
+namespace mlsreg {
+
+Eigen::Matrix3d ExpSo3(const Vec3& omega) {
+  const double angle = omega.norm();
+  if (angle < 1e-300) return Eigen::Matrix3d::Identity();
+  return Eigen::AngleAxisd(angle, omega / angle).toRotationMatrix();
+}
+
+namespace {
+// Weighted centroid of the entries with positive weight; false when the total weight is zero.
+bool WeightedCentroid(std::span<const Vec3> x, std::span<const double> w, Vec3& centroid) {
+  double total = 0.0;
+  Vec3 sum = Vec3::Zero();
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (w[i] <= 0.0) continue;
+    total += w[i];
+    sum += w[i] * x[i];
+  }
+  if (!(total > 0.0)) return false;
+  centroid = sum / total;
+  return true;
+}
+}  // namespace
+
+RigidTransform PointToPointMotion(std::span<const Vec3> x, std::span<const Vec3> y,
+                                  std::span<const double> w) {
+  RigidTransform result = RigidTransform::Identity();
+  Vec3 cx, cy;
+  if (!WeightedCentroid(x, w, cx) || !WeightedCentroid(y, w, cy)) return result;
+  Eigen::Matrix3d cross = Eigen::Matrix3d::Zero();
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (w[i] <= 0.0) continue;
+    cross.noalias() += w[i] * (x[i] - cx) * (y[i] - cy).transpose();
+  }
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(cross, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d correction = Eigen::Matrix3d::Identity();
+  if ((svd.matrixV() * svd.matrixU().transpose()).determinant() < 0.0) correction(2, 2) = -1.0;
+  const Eigen::Matrix3d rotation = svd.matrixV() * correction * svd.matrixU().transpose();
+  result.linear() = rotation;
+  result.translation() = cy - rotation * cx;
+  return result;
+}
+
+RigidTransform PointToPlaneMotion(std::span<const Vec3> x, std::span<const Vec3> y,
+                                  std::span<const Vec3> n, std::span<const double> u,
+                                  std::span<const double> w) {
+  RigidTransform result = RigidTransform::Identity();
+  Vec3 mean;
+  if (!WeightedCentroid(x, w, mean)) return result;
+  using Matrix6 = Eigen::Matrix<double, 6, 6>;
+  using Vector6 = Eigen::Matrix<double, 6, 1>;
+  Matrix6 lhs = Matrix6::Zero();
+  Vector6 rhs = Vector6::Zero();
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (w[i] <= 0.0) continue;
+    const Vec3 xc = x[i] - mean;
+    Vector6 row;
+    row.head<3>() = xc.cross(n[i]);
+    row.tail<3>() = n[i];
+    const double residual = (x[i] - y[i]).dot(n[i]) - u[i];
+    lhs.selfadjointView<Eigen::Lower>().rankUpdate(row, w[i]);
+    rhs.noalias() -= (w[i] * residual) * row;
+  }
+  const Matrix6 full = lhs.selfadjointView<Eigen::Lower>();
+  const Eigen::LDLT<Matrix6> ldlt(full);
+  if (ldlt.info() != Eigen::Success) return result;
+  const Vector6 step = ldlt.solve(rhs);
+  if (!step.allFinite()) return result;
+  // x' = R (x - mean) + mean + t
+  const Eigen::Matrix3d rotation = ExpSo3(step.head<3>());
+  result.linear() = rotation;
+  result.translation() = mean + step.tail<3>() - rotation * mean;
+  return result;
+}
+
+}  // namespace mlsreg

@@ -1,0 +1,41 @@
+#include "mlsreg/target.h"
+
+#include <chrono>
+
+#include "absl/strings/str_cat.h"
+#include "mlsreg/sampling.h"
+
+namespace mlsreg {
+
+absl::StatusOr<std::shared_ptr<const Target>> Target::Build(PointCloud cloud,
+                                                            const TargetOptions& options) {
+  if (absl::Status s = ValidatePointCloud(cloud, options.min_points); !s.ok()) return s;
+  if (!(options.analysis_radius_d > 0.0)) {
+    return absl::InvalidArgumentError("analysis_radius_d must be positive");
+  }
+  const auto start = std::chrono::steady_clock::now();
+  std::shared_ptr<Target> target(new Target());
+  target->cloud_ = std::move(cloud);
+  target->options_ = options;
+  target->tree_ = std::make_unique<KdTree>(target->cloud_.points);
+  target->sampling_distance_ = SamplingDistance(target->cloud_.points, *target->tree_);
+  if (!(target->sampling_distance_ > 0.0)) {
+    return absl::InvalidArgumentError("target has no two distinct points (sampling distance 0)");
+  }
+  target->surface_ =
+      AnalyzeSurface(target->cloud_.points, *target->tree_,
+                     options.analysis_radius_d * target->sampling_distance_,
+                     target->cloud_.viewpoint);
+  target->build_seconds_ =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return std::shared_ptr<const Target>(std::move(target));
+}
+
+std::size_t Target::MemoryBytes() const {
+  return cloud_.points.capacity() * sizeof(Vec3) + cloud_.normals.capacity() * sizeof(Vec3) +
+         surface_.normals.capacity() * sizeof(Vec3) +
+         surface_.curvature.capacity() * sizeof(double) + surface_.valid.capacity() +
+         tree_->MemoryBytes() + sizeof(Target);
+}
+
+}  // namespace mlsreg

@@ -1,0 +1,169 @@
+#include <cmath>
+#include <numbers>
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+#include "mlsreg/correspondence_filter.h"
+#include "mlsreg/kd_tree.h"
+#include "mlsreg/metrics.h"
+#include "mlsreg/sampling.h"
+#include "mlsreg/transform.h"
+#include "support/synthetic.h"
+
+namespace mlsreg {
+namespace {
+
+struct FilterCase {
+  Vec3 source_normal;
+  double source_h;
+  Correspondence c;
+};
+
+TEST(CorrespondenceFilterTest, RejectsEachReasonAndCountsIt) {
+  Correspondence good{Vec3(0, 0, 0.1), Vec3::UnitZ(), 0.010, true};
+  std::vector<Vec3> points(6, Vec3::Zero());
+  std::vector<Vec3> normals(6, Vec3::UnitZ());
+  std::vector<double> h(6, 0.010);
+  std::vector<std::uint8_t> valid(6, 1);
+  std::vector<Correspondence> c(6, good);
+  c[1].valid = false;                                         // invalid projection
+  c[2].point = Vec3(0, 0, 10.0);                              // too far
+  c[3].normal = Vec3(1, 0, 1).normalized() * 1.0;             // dot = 0.707 >= 0.7: kept
+  c[4].normal = Vec3(1, 0, 0.9).normalized();                 // dot = 0.669 < 0.7: rejected
+  c[5].curvature = 0.020;                                     // ratio 0.5 < 0.75: rejected
+  CorrespondenceFilterOptions options;
+  options.max_distance = 1.0;
+  const CorrespondenceFilter filter(options);
+  std::vector<std::uint8_t> accepted(6);
+  const CorrespondenceCounts counts = filter.Apply(points, normals, h, valid, c, accepted);
+  EXPECT_EQ(counts.matched, 2);
+  EXPECT_EQ(counts.invalid, 1);
+  EXPECT_EQ(counts.rejected_distance, 1);
+  EXPECT_EQ(counts.rejected_normal, 1);
+  EXPECT_EQ(counts.rejected_curvature, 1);
+  EXPECT_EQ(counts.total(), 6);
+  EXPECT_EQ(accepted, (std::vector<std::uint8_t>{1, 0, 0, 1, 0, 0}));
+}
+
+TEST(CorrespondenceFilterTest, NormalSignMattersOnlyWhenBothSidesAreOriented) {
+  std::vector<Vec3> points{Vec3::Zero()}, normals{Vec3::UnitZ()};
+  std::vector<double> h{0.01};
+  std::vector<std::uint8_t> valid{1}, accepted(1);
+  std::vector<Correspondence> c{{Vec3::Zero(), -Vec3::UnitZ(), 0.01, true}};
+  CorrespondenceFilterOptions options;
+  EXPECT_EQ(CorrespondenceFilter(options).Apply(points, normals, h, valid, c, accepted).matched, 1);
+  options.source_oriented = options.target_oriented = true;
+  EXPECT_EQ(
+      CorrespondenceFilter(options).Apply(points, normals, h, valid, c, accepted).rejected_normal,
+      1);
+}
+
+TEST(CorrespondenceFilterTest, CurvatureRatioIsSymmetricAndFloored) {
+  std::vector<Vec3> points{Vec3::Zero()}, normals{Vec3::UnitZ()};
+  std::vector<std::uint8_t> valid{1}, accepted(1);
+  const CorrespondenceFilter filter{CorrespondenceFilterOptions{}};
+  auto kept = [&](double h1, double h2) {
+    std::vector<double> h{h1};
+    std::vector<Correspondence> c{{Vec3::Zero(), Vec3::UnitZ(), h2, true}};
+    return filter.Apply(points, normals, h, valid, c, accepted).matched == 1;
+  };
+  EXPECT_TRUE(kept(0.010, 0.0130));   // 0.77
+  EXPECT_FALSE(kept(0.010, 0.0140));  // 0.71
+  EXPECT_TRUE(kept(0.0130, 0.010));   // 1.3 <= 1/0.75
+  EXPECT_FALSE(kept(0.0140, 0.010));  // 1.4 > 1/0.75
+  EXPECT_TRUE(kept(1e-9, 1e-6));      // both flat: compared at the floor
+}
+
+TEST(SamplingTest, SamplingDistanceOfRegularGridIsItsSpacing) {
+  const PointCloud grid = testing::SamplePlaneGrid(1.0, 0.05, 0.0, 1);
+  const KdTree tree(grid.points);
+  EXPECT_NEAR(SamplingDistance(grid.points, tree), 0.05, 1e-9);
+}
+
+TEST(SamplingTest, SamplingDistanceSkipsDuplicates) {
+  std::vector<Vec3> points{Vec3(0, 0, 0), Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 0, 0)};
+  const KdTree tree(points);
+  EXPECT_DOUBLE_EQ(SamplingDistance(points, tree), 1.0);
+}
+
+TEST(SamplingTest, RandomSubsampleIsSeededDistinctAndSorted) {
+  const auto a = RandomSubsample(10000, 2000, 42);
+  const auto b = RandomSubsample(10000, 2000, 42);
+  const auto c = RandomSubsample(10000, 2000, 43);
+  EXPECT_EQ(a, b);
+  EXPECT_NE(a, c);
+  ASSERT_EQ(a.size(), 2000u);
+  for (std::size_t i = 1; i < a.size(); ++i) EXPECT_LT(a[i - 1], a[i]);
+  EXPECT_LT(a.back(), 10000u);
+  EXPECT_EQ(RandomSubsample(5, 10, 1).size(), 5u);
+}
+
+TEST(KdTreeTest, MatchesBruteForce) {
+  const PointCloud cloud = testing::SampleBumpySurface(3000, -1, 1, 3);
+  const KdTree tree(cloud.points);
+  const Vec3 q(0.1, -0.2, 0.05);
+  std::size_t best = 0;
+  for (std::size_t i = 1; i < cloud.size(); ++i) {
+    if ((cloud.points[i] - q).norm() < (cloud.points[best] - q).norm()) best = i;
+  }
+  EXPECT_EQ(tree.Nearest(q).index, best);
+  RadiusNeighbors found;
+  tree.Radius(q, 0.2, found);
+  std::size_t brute = 0;
+  for (const Vec3& p : cloud.points) brute += (p - q).norm() < 0.2;
+  EXPECT_EQ(found.size(), brute);
+}
+
+TEST(TransformTest, ParsesRowMajorAndRejectsNonRigid) {
+  auto ok = ParseTransform("0 -1 0 1, 1 0 0 2, 0 0 1 3, 0 0 0 1", "init");
+  ASSERT_TRUE(ok.ok()) << ok.status();
+  EXPECT_DOUBLE_EQ((*ok)(0, 1), -1.0);
+  EXPECT_DOUBLE_EQ((*ok)(1, 3), 2.0);
+  auto scaled = ParseTransform("2 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1", "init");
+  EXPECT_EQ(scaled.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(scaled.status().message().find("init is not rigid"), std::string::npos);
+  auto reflection = ParseTransform("-1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1", "gt");
+  EXPECT_NE(reflection.status().message().find("reflection"), std::string::npos);
+  auto short_list = ParseTransform("1 0 0", "init");
+  EXPECT_NE(short_list.status().message().find("16 numbers"), std::string::npos);
+  auto nan = ParseTransform("nan 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1", "init");
+  EXPECT_EQ(nan.status().code(), absl::StatusCode::kInvalidArgument);
+}
+
+TEST(TransformTest, FormatRoundTripsExactly) {
+  const Matrix4 m = RandomPerturbation(33.0, 0.7, Vec3(1, 2, 3), 9);
+  auto parsed = ParseTransform(FormatTransform(m), "m");
+  ASSERT_TRUE(parsed.ok());
+  EXPECT_TRUE(parsed->isApprox(m, 1e-15));
+}
+
+TEST(TransformTest, PerturbationHasExactAngleAndOffsetAndIsSeeded) {
+  const Vec3 center(0.3, -0.1, 2.0);
+  const Matrix4 m = RandomPerturbation(10.0, 0.5, center, 77);
+  const Eigen::Matrix3d r = m.topLeftCorner<3, 3>();
+  EXPECT_NEAR(Eigen::AngleAxisd(r).angle() * 180.0 / std::numbers::pi, 10.0, 1e-9);
+  // The centre moves by exactly the translation.
+  EXPECT_NEAR((r * center + m.topRightCorner<3, 1>() - center).norm(), 0.5, 1e-12);
+  EXPECT_TRUE(m.isApprox(RandomPerturbation(10.0, 0.5, center, 77)));
+  EXPECT_FALSE(m.isApprox(RandomPerturbation(10.0, 0.5, center, 78)));
+}
+
+TEST(MetricsTest, RmseOfPureTranslationIsItsLength) {
+  std::vector<Vec3> points{Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 5, 0)};
+  Matrix4 truth = Matrix4::Identity();
+  Matrix4 estimate = Matrix4::Identity();
+  estimate(0, 3) = 0.3;
+  estimate(1, 3) = 0.4;
+  const PoseError e = EvaluatePose(points, estimate, truth, 0.1);
+  EXPECT_NEAR(e.rmse_d, 5.0, 1e-12);
+  EXPECT_FALSE(e.success);  // 5 d is not < 5 d
+  EXPECT_NEAR(e.translation_d, 5.0, 1e-12);
+  EXPECT_NEAR(e.rotation_deg, 0.0, 1e-9);
+  const PoseError rotated = EvaluatePose(points, RandomPerturbation(3.0, 0.0, Vec3::Zero(), 1),
+                                         truth, 1.0);
+  EXPECT_NEAR(rotated.rotation_deg, 3.0, 1e-9);
+}
+
+}  // namespace
+}  // namespace mlsreg

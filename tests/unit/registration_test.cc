@@ -1,0 +1,154 @@
+#include "mlsreg/registration.h"
+
+#include <atomic>
+
+#include <gtest/gtest.h>
+
+#include "mlsreg/metrics.h"
+#include "support/synthetic.h"
+
+namespace mlsreg {
+namespace {
+
+using testing::SampleBumpySurface;
+
+// Target: 20k samples of the bumpy surface over [-1, 1]^2 (d ~ 0.007). Source: an independent
+// sampling (so no point coincides) of the overlapping part [-0.8, 0.6]^2, moved by a known motion.
+struct SyntheticPair {
+  std::shared_ptr<const Target> target;
+  PointCloud source;  // in its own frame
+  Matrix4 truth;      // source -> target
+};
+
+SyntheticPair MakePair(double noise_d) {
+  SyntheticPair pair;
+  PointCloud target_cloud = SampleBumpySurface(20000, -1.0, 1.0, 1);
+  auto target = Target::Build(std::move(target_cloud));
+  EXPECT_TRUE(target.ok());
+  pair.target = *target;
+  const double d = pair.target->sampling_distance();
+  PointCloud in_target_frame = SampleBumpySurface(12000, -0.8, 0.6, 2, noise_d * d);
+  // truth maps source -> target, so the source is inv(truth) applied to target-frame samples.
+  pair.truth = RandomPerturbation(12.0, 0.1, Vec3(0.0, 0.0, 0.0), 3);
+  const Matrix4 inverse = pair.truth.inverse();
+  for (const Vec3& p : in_target_frame.points) {
+    pair.source.points.push_back(inverse.topLeftCorner<3, 3>() * p + inverse.topRightCorner<3, 1>());
+  }
+  return pair;
+}
+
+class RegistrationMethodTest : public ::testing::TestWithParam<Method> {};
+
+TEST_P(RegistrationMethodTest, RecoversKnownTransformOfSyntheticPair) {
+  const SyntheticPair pair = MakePair(0.0);
+  const double d = pair.target->sampling_distance();
+  RegistrationOptions options;
+  options.method = GetParam();
+  // Start 5 degrees and 5 d away from the truth.
+  const Matrix4 initial = RandomPerturbation(5.0, 5.0 * d, Vec3(-0.1, -0.1, 0.0), 4) * pair.truth;
+  auto result = Register(*pair.target, pair.source, initial, options);
+  ASSERT_TRUE(result.ok()) << result.status();
+  const PoseError e = EvaluatePose(pair.source.points, result->transform, pair.truth, d);
+  EXPECT_LT(e.rmse_d, 0.5) << MethodName(GetParam());
+  EXPECT_LT(e.rotation_deg, 0.1);
+  EXPECT_GE(result->iterations, 2);
+  EXPECT_EQ(static_cast<int>(result->trace.size()), result->iterations);
+  // The correspondence RMSE shrinks as the registration converges.
+  EXPECT_LT(result->trace.back().rmse, result->trace.front().rmse);
+}
+
+INSTANTIATE_TEST_SUITE_P(AllMethods, RegistrationMethodTest,
+                         ::testing::Values(Method::kCpSicp, Method::kMlsSicp),
+                         [](const auto& info) {
+                           return std::string(info.param == Method::kCpSicp ? "CpSicp" : "MlsSicp");
+                         });
+
+TEST(RegistrationTest, MlsBeatsClosestPointOnNoisySamples) {
+  // Noise of 2 d along z: MLS correspondences de-noise the target, closest points do not.
+  const SyntheticPair pair = MakePair(2.0);
+  const double d = pair.target->sampling_distance();
+  // Add the same level of noise to the target by rebuilding it from noisy samples.
+  auto noisy_target = Target::Build(SampleBumpySurface(20000, -1.0, 1.0, 1, 2.0 * d));
+  ASSERT_TRUE(noisy_target.ok());
+  RegistrationOptions options;
+  options.mls.radius_d = 8.0;  // paper Table 2 for high noise
+  const Matrix4 initial = RandomPerturbation(3.0, 3.0 * d, Vec3::Zero(), 5) * pair.truth;
+  options.method = Method::kMlsSicp;
+  auto mls = Register(**noisy_target, pair.source, initial, options);
+  options.method = Method::kCpSicp;
+  auto cp = Register(**noisy_target, pair.source, initial, options);
+  ASSERT_TRUE(mls.ok() && cp.ok());
+  const double mls_error = EvaluatePose(pair.source.points, mls->transform, pair.truth, d).rmse_d;
+  const double cp_error = EvaluatePose(pair.source.points, cp->transform, pair.truth, d).rmse_d;
+  EXPECT_LT(mls_error, 1.0);
+  EXPECT_LT(mls_error, cp_error);
+}
+
+TEST(RegistrationTest, ObserverSeesEveryIterationAndCancelStopsWithinOne) {
+  const SyntheticPair pair = MakePair(0.0);
+  const double d = pair.target->sampling_distance();
+  const Matrix4 initial = RandomPerturbation(5.0, 5.0 * d, Vec3::Zero(), 6) * pair.truth;
+  RegistrationOptions options;
+  options.convergence_d = 0.0;  // never converge: run until cancelled
+  std::vector<int> seen;
+  RegistrationCallbacks callbacks;
+  callbacks.on_iteration = [&](const IterationReport& r) {
+    seen.push_back(r.iteration);
+    EXPECT_EQ(r.counts.total(), 2000);
+    EXPECT_GT(r.counts.matched, 0);
+    EXPECT_GE(r.elapsed_seconds, 0.0);
+  };
+  callbacks.should_stop = [&] { return seen.size() >= 3; };
+  auto result = Register(*pair.target, pair.source, initial, options, callbacks);
+  ASSERT_TRUE(result.ok());
+  EXPECT_EQ(result->termination, Termination::kCancelled);
+  EXPECT_EQ(seen, (std::vector<int>{1, 2, 3}));
+  EXPECT_EQ(result->iterations, 3);
+}
+
+TEST(RegistrationTest, SameInputsGiveBitIdenticalResults) {
+  const SyntheticPair pair = MakePair(0.0);
+  const Matrix4 initial = pair.truth;
+  RegistrationOptions options;
+  options.max_iterations = 5;
+  auto a = Register(*pair.target, pair.source, initial, options);
+  auto b = Register(*pair.target, pair.source, initial, options);
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_EQ(a->transform, b->transform);
+}
+
+TEST(RegistrationTest, RejectsBadInputNamingTheField) {
+  const SyntheticPair pair = MakePair(0.0);
+  RegistrationOptions options;
+  Matrix4 scaled = Matrix4::Identity() * 2.0;
+  scaled(3, 3) = 1.0;
+  auto r1 = Register(*pair.target, pair.source, scaled, options);
+  EXPECT_EQ(r1.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(r1.status().message().find("initial_transform"), std::string::npos);
+
+  options.mls.radius_d = -1;
+  auto r2 = Register(*pair.target, pair.source, Matrix4::Identity(), options);
+  EXPECT_NE(r2.status().message().find("mls.radius_d"), std::string::npos);
+
+  PointCloud bad = pair.source;
+  bad.points[7].x() = std::numeric_limits<double>::quiet_NaN();
+  auto r3 = Register(*pair.target, bad, Matrix4::Identity(), RegistrationOptions{});
+  EXPECT_EQ(r3.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(r3.status().message().find("source: point 7"), std::string::npos);
+
+  EXPECT_EQ(ParseMethod("icp").status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(*ParseMethod("mls-sicp"), Method::kMlsSicp);
+}
+
+TEST(TargetTest, RejectsTooSmallAndNonFiniteClouds) {
+  PointCloud tiny;
+  tiny.points = {Vec3(0, 0, 0), Vec3(1, 0, 0)};
+  EXPECT_EQ(Target::Build(tiny).status().code(), absl::StatusCode::kInvalidArgument);
+  PointCloud same(testing::SampleBumpySurface(100, -1, 1, 1));
+  for (Vec3& p : same.points) p = Vec3(1, 2, 3);
+  auto status = Target::Build(same).status();
+  EXPECT_NE(status.message().find("sampling distance"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace mlsreg

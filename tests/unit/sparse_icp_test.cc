@@ -1,0 +1,143 @@
+#include "mlsreg/sparse_icp.h"
+
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "mlsreg/rigid_motion.h"
+#include "mlsreg/transform.h"
+
+namespace mlsreg {
+namespace {
+
+RigidTransform KnownMotion() {
+  RigidTransform t = RigidTransform::Identity();
+  t.linear() = ExpSo3(Vec3(0.2, -0.1, 0.3));
+  t.translation() = Vec3(0.5, -0.2, 0.1);
+  return t;
+}
+
+std::vector<Vec3> RandomPoints(int n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::vector<Vec3> p(n);
+  for (Vec3& v : p) v = Vec3(u(rng), u(rng), u(rng));
+  return p;
+}
+
+TEST(LpShrinkTest, ZeroBelowThresholdAndApproachesIdentityFarAway) {
+  const double mu = 10.0, p = 0.5;
+  const double ba = std::pow((2.0 / mu) * (1.0 - p), 1.0 / (2.0 - p));
+  const double ha = ba + (p / mu) * std::pow(ba, p - 1.0);
+  EXPECT_EQ(LpShrinkWeight(0.99 * ha, mu, p), 0.0);
+  const double beta = LpShrinkWeight(1.01 * ha, mu, p);
+  EXPECT_GT(beta, 0.0);
+  EXPECT_LT(beta, 1.0);
+  EXPECT_GT(LpShrinkWeight(1000.0, mu, p), 0.999);
+  // p = 1 is soft thresholding: z = h - sign(h) / mu.
+  EXPECT_NEAR(LpShrinkWeight(2.0, mu, 1.0) * 2.0, 2.0 - 1.0 / mu, 1e-12);
+  // The prox minimises |z|^p + mu/2 (z - h)^2: check against a dense 1-D search.
+  for (double h : {0.4, 0.7, 1.5, 3.0}) {
+    auto objective = [&](double z) { return std::pow(std::abs(z), p) + 0.5 * mu * (z - h) * (z - h); };
+    double best_z = 0, best = objective(0);
+    for (double z = 0; z <= h; z += 1e-5) {
+      if (objective(z) < best) best = objective(z), best_z = z;
+    }
+    EXPECT_NEAR(LpShrinkWeight(h, mu, p) * h, best_z, 1e-3) << "h = " << h;
+  }
+}
+
+TEST(RigidMotionTest, PointToPointRecoversExactTransform) {
+  const std::vector<Vec3> x = RandomPoints(50, 1);
+  const RigidTransform truth = KnownMotion();
+  std::vector<Vec3> y;
+  for (const Vec3& p : x) y.push_back(truth * p);
+  const std::vector<double> w(x.size(), 1.0);
+  const RigidTransform estimate = PointToPointMotion(x, y, w);
+  EXPECT_TRUE(estimate.matrix().isApprox(truth.matrix(), 1e-12));
+}
+
+TEST(RigidMotionTest, PointToPointIgnoresZeroWeights) {
+  std::vector<Vec3> x = RandomPoints(50, 2);
+  const RigidTransform truth = KnownMotion();
+  std::vector<Vec3> y;
+  for (const Vec3& p : x) y.push_back(truth * p);
+  std::vector<double> w(x.size(), 1.0);
+  for (int i = 0; i < 10; ++i) {
+    y[i] += Vec3(5, 5, 5);  // gross outliers, weight 0
+    w[i] = 0.0;
+  }
+  EXPECT_TRUE(PointToPointMotion(x, y, w).matrix().isApprox(truth.matrix(), 1e-12));
+}
+
+TEST(RigidMotionTest, PointToPlaneConvergesToExactTransform) {
+  // Correspondences with their true normals: iterating the linearised step converges to truth.
+  const std::vector<Vec3> x0 = RandomPoints(200, 3);
+  RigidTransform truth = RigidTransform::Identity();
+  truth.linear() = ExpSo3(Vec3(0.05, -0.03, 0.04));
+  truth.translation() = Vec3(0.05, 0.02, -0.03);
+  std::vector<Vec3> y, n;
+  std::mt19937_64 rng(4);
+  std::normal_distribution<double> g;
+  for (const Vec3& p : x0) {
+    y.push_back(truth * p);
+    n.push_back(Vec3(g(rng), g(rng), g(rng)).normalized());
+  }
+  const std::vector<double> u(x0.size(), 0.0), w(x0.size(), 1.0);
+  std::vector<Vec3> x = x0;
+  RigidTransform total = RigidTransform::Identity();
+  for (int it = 0; it < 10; ++it) {
+    const RigidTransform step = PointToPlaneMotion(x, y, n, u, w);
+    for (Vec3& p : x) p = step * p;
+    total = step * total;
+  }
+  EXPECT_TRUE(total.matrix().isApprox(truth.matrix(), 1e-10));
+  EXPECT_NEAR(total.linear().determinant(), 1.0, 1e-12);
+}
+
+TEST(SparseIcpSolverTest, RobustToGrossOutliers) {
+  // Fixed correspondences, 30 % of them gross outliers: the lp (p = 0.5) ADMM still recovers the
+  // transform that least squares would miss.
+  const std::vector<Vec3> x0 = RandomPoints(300, 5);
+  RigidTransform truth = RigidTransform::Identity();
+  truth.linear() = ExpSo3(Vec3(0.02, 0.01, -0.02));
+  truth.translation() = Vec3(0.01, -0.02, 0.015);
+  std::vector<Vec3> q;
+  std::mt19937_64 rng(6);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (std::size_t i = 0; i < x0.size(); ++i) {
+    q.push_back(truth * x0[i]);
+    if (i % 10 < 3) q.back() += Vec3(u(rng), u(rng), u(rng));
+  }
+  const std::vector<Vec3> n(x0.size(), Vec3::UnitZ());
+  const std::vector<std::uint8_t> active(x0.size(), 1);
+  SparseIcpOptions options;
+  options.metric = SicpMetric::kPointToPoint;
+  options.max_outer = 200;
+  options.length_unit = 0.1;
+  options.stop = 1e-9;
+  SparseIcpSolver solver(options);
+  std::vector<Vec3> x = x0;
+  RigidTransform total = RigidTransform::Identity();
+  for (int it = 0; it < 5; ++it) total = solver.Step(x, q, n, active) * total;
+  const double rotation_error =
+      Eigen::AngleAxisd(truth.linear().transpose() * total.linear()).angle();
+  EXPECT_LT(rotation_error, 1e-3);
+  EXPECT_LT((total.translation() - truth.translation()).norm(), 1e-3);
+  // Least squares (Procrustes on all pairs) is visibly biased by the outliers.
+  const std::vector<double> w(x0.size(), 1.0);
+  const RigidTransform ls = PointToPointMotion(x0, q, w);
+  EXPECT_GT((ls.translation() - truth.translation()).norm(), 3e-3);
+}
+
+TEST(SparseIcpOptionsTest, RejectsOutOfRangeNamingTheField) {
+  SparseIcpOptions o;
+  o.p = 1.5;
+  const absl::Status s = ValidateSparseIcpOptions(o);
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(s.message().find("sicp.p"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace mlsreg
