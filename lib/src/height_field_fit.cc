@@ -1,8 +1,7 @@
 #include "mlsreg/height_field_fit.h"
 
-#include <algorithm>
-
 #include <Eigen/Cholesky>
+#include <algorithm>
 
 namespace mlsreg {
 namespace {
@@ -43,19 +42,31 @@ void HeightFieldFit::Add(double x, double y, double f, double weight) {
   normal_matrix_.selfadjointView<Eigen::Lower>().rankUpdate(m, weight);
   rhs_.noalias() += (weight * f) * m;
   ++count_;
+  sum_w_ += weight;
+  sum_w2_ += weight * weight;
 }
 
 bool HeightFieldFit::Finalize(HeightField& out) const {
   const Eigen::Matrix<double, 10, 10> a = normal_matrix_.selfadjointView<Eigen::Lower>();
+  const double effective_samples = sum_w2_ > 0.0 ? sum_w_ * sum_w_ / sum_w2_ : 0.0;
   for (int degree = degree_; degree >= 0; --degree) {
-    // A polynomial with k coefficients needs at least k samples to be determined.
-    if (count_ < MonomialCount(degree)) continue;
+    const int coefficients = MonomialCount(degree);
+    if (count_ < coefficients) continue;
+    if (degree > 0 && effective_samples < kSamplesPerCoefficient * coefficients) continue;
     bool solved = false;
     switch (degree) {
-      case 3: solved = SolveLeading<10>(a, rhs_, out.coefficients); break;
-      case 2: solved = SolveLeading<6>(a, rhs_, out.coefficients); break;
-      case 1: solved = SolveLeading<3>(a, rhs_, out.coefficients); break;
-      default: solved = SolveLeading<1>(a, rhs_, out.coefficients); break;
+      case 3:
+        solved = SolveLeading<10>(a, rhs_, out.coefficients);
+        break;
+      case 2:
+        solved = SolveLeading<6>(a, rhs_, out.coefficients);
+        break;
+      case 1:
+        solved = SolveLeading<3>(a, rhs_, out.coefficients);
+        break;
+      default:
+        solved = SolveLeading<1>(a, rhs_, out.coefficients);
+        break;
     }
     if (solved) {
       out.degree = degree;

@@ -18,8 +18,7 @@ double GroundTruthRmse(std::span<const Vec3> source_points, const Matrix4& estim
 }
 
 PoseError EvaluatePose(std::span<const Vec3> source_points, const Matrix4& estimate,
-                       const Matrix4& truth, double sampling_distance,
-                       double success_threshold_d) {
+                       const Matrix4& truth, double sampling_distance, double success_threshold_d) {
   PoseError e;
   e.rmse_d = GroundTruthRmse(source_points, estimate, truth) / sampling_distance;
   e.success = e.rmse_d < success_threshold_d;

@@ -10,10 +10,14 @@ namespace mlsreg {
 
 std::string_view ProjectionStatusName(ProjectionStatus status) {
   switch (status) {
-    case ProjectionStatus::kOk: return "ok";
-    case ProjectionStatus::kTooFewNeighbors: return "too_few_neighbors";
-    case ProjectionStatus::kDegenerate: return "degenerate";
-    case ProjectionStatus::kNotConverged: return "not_converged";
+    case ProjectionStatus::kOk:
+      return "ok";
+    case ProjectionStatus::kTooFewNeighbors:
+      return "too_few_neighbors";
+    case ProjectionStatus::kDegenerate:
+      return "degenerate";
+    case ProjectionStatus::kNotConverged:
+      return "not_converged";
   }
   return "unknown";
 }
@@ -34,7 +38,7 @@ MlsProjection MlsProjector::ProjectFrom(const Vec3& start, Workspace& ws) const 
   const double reuse_distance = r * options_.search_margin;
 
   MlsProjection result;
-  Vec3 s = start;                 // the iterate of Algorithm 1
+  Vec3 s = start;  // the iterate of Algorithm 1
   Vec3 gathered_at = start;
   bool have_candidates = false;
   bool reseeded = false;
@@ -108,9 +112,9 @@ MlsProjection MlsProjector::ProjectFrom(const Vec3& start, Workspace& ws) const 
     const double move = (next - s).norm();
     s = next;
     result.point = s;
-    result.normal = (frame.normal - height.SlopeX() * frame.tangent_u -
-                     height.SlopeY() * frame.tangent_v)
-                        .normalized();
+    result.normal =
+        (frame.normal - height.SlopeX() * frame.tangent_u - height.SlopeY() * frame.tangent_v)
+            .normalized();
     result.curvature = frame.surface_variation;
     if (move < options_.tolerance) {
       result.status = ProjectionStatus::kOk;

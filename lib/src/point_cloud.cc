@@ -6,9 +6,8 @@ namespace mlsreg {
 
 absl::Status ValidatePointCloud(const PointCloud& cloud, std::size_t min_points) {
   if (cloud.size() < min_points) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("point cloud has ", cloud.size(), " points; at least ", min_points,
-                     " are required"));
+    return absl::InvalidArgumentError(absl::StrCat(
+        "point cloud has ", cloud.size(), " points; at least ", min_points, " are required"));
   }
   for (std::size_t i = 0; i < cloud.points.size(); ++i) {
     if (!cloud.points[i].allFinite()) {

@@ -14,8 +14,10 @@ namespace mlsreg {
 
 std::string_view MethodName(Method method) {
   switch (method) {
-    case Method::kCpSicp: return "cp-sicp";
-    case Method::kMlsSicp: return "mls-sicp";
+    case Method::kCpSicp:
+      return "cp-sicp";
+    case Method::kMlsSicp:
+      return "mls-sicp";
   }
   return "unknown";
 }
@@ -35,10 +37,14 @@ absl::StatusOr<Method> ParseMethod(std::string_view name) {
 
 std::string_view TerminationName(Termination termination) {
   switch (termination) {
-    case Termination::kConverged: return "converged";
-    case Termination::kMaxIterations: return "max_iterations";
-    case Termination::kCancelled: return "cancelled";
-    case Termination::kTooFewCorrespondences: return "too_few_correspondences";
+    case Termination::kConverged:
+      return "converged";
+    case Termination::kMaxIterations:
+      return "max_iterations";
+    case Termination::kCancelled:
+      return "cancelled";
+    case Termination::kTooFewCorrespondences:
+      return "too_few_correspondences";
   }
   return "unknown";
 }
@@ -100,7 +106,8 @@ std::unique_ptr<CorrespondenceFinder> MakeFinder(Method method, const Target& ta
                                                  const RegistrationOptions& options) {
   const double d = target.sampling_distance();
   switch (method) {
-    case Method::kCpSicp: return std::make_unique<ClosestPointFinder>(target);
+    case Method::kCpSicp:
+      return std::make_unique<ClosestPointFinder>(target);
     case Method::kMlsSicp: {
       MlsOptions mls;
       mls.radius = options.mls.radius_d * d;
@@ -150,9 +157,9 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
   // Preprocessing: source normals and surface variation at the samples.
   phase = Clock::now();
   const KdTree source_tree(source.points);
-  samples.surface = AnalyzeSurface(source.points, source_tree,
-                                   AnalysisRadius(options.method, target, options),
-                                   source.viewpoint, indices);
+  samples.surface =
+      AnalyzeSurface(source.points, source_tree, AnalysisRadius(options.method, target, options),
+                     source.viewpoint, indices);
   result.timings.preprocessing = Seconds(phase);
 
   std::unique_ptr<CorrespondenceFinder> finder = MakeFinder(options.method, target, options);
@@ -173,7 +180,8 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
 
   // Per-iteration buffers, allocated once.
   const std::size_t m = samples.points.size();
-  std::vector<Vec3> moved(m), moved_normals(m), before(m), partner_points(m), partner_normals(m);
+  std::vector<Vec3> moved(m), moved_normals(m), before(m), two_before(m), partner_points(m),
+      partner_normals(m);
   std::vector<Correspondence> correspondences(m);
   std::vector<std::uint8_t> accepted(m);
   solver.Reset(m);
@@ -211,14 +219,20 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
     bool converged = false;
     if (report.counts.matched >= options.min_correspondences) {
       phase = Clock::now();
+      std::swap(two_before, before);  // the samples where iteration - 1 started
       before = moved;
-      const RigidTransform increment = solver.Step(moved, partner_points, partner_normals, accepted);
+      const RigidTransform increment =
+          solver.Step(moved, partner_points, partner_normals, accepted);
       transform = increment * transform;
-      double max_move = 0.0;
+      // Converged when the samples stop moving, or when they come back to where they were two
+      // iterations ago: hard filters can make ICP alternate between two poses forever.
+      double max_move = 0.0, max_cycle = 0.0;
       for (std::size_t i = 0; i < m; ++i) {
         max_move = std::max(max_move, (moved[i] - before[i]).squaredNorm());
+        max_cycle = std::max(max_cycle, (moved[i] - two_before[i]).squaredNorm());
       }
-      converged = std::sqrt(max_move) < convergence;
+      converged = std::sqrt(max_move) < convergence ||
+                  (iteration >= 3 && std::sqrt(max_cycle) < convergence);
       report.admm_iterations = solver.last_outer_iterations();
       result.timings.optimisation += Seconds(phase);
     }

@@ -1,9 +1,8 @@
 #include "mlsreg/rigid_motion.h"
 
-#include <cmath>
-
 #include <Eigen/Cholesky>
 #include <Eigen/SVD>
+#include <cmath>
 
 namespace mlsreg {
 

@@ -40,8 +40,7 @@ std::vector<std::uint32_t> RandomSubsample(std::size_t size, std::size_t count,
   std::mt19937_64 rng(seed);
   for (std::size_t i = 0; i < count; ++i) {
     const std::uint64_t range = size - i;
-    const auto draw = static_cast<std::uint64_t>(
-        (static_cast<Uint128>(rng()) * range) >> 64);
+    const auto draw = static_cast<std::uint64_t>((static_cast<Uint128>(rng()) * range) >> 64);
     std::swap(all[i], all[i + draw]);
   }
   all.resize(count);

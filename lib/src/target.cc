@@ -22,10 +22,9 @@ absl::StatusOr<std::shared_ptr<const Target>> Target::Build(PointCloud cloud,
   if (!(target->sampling_distance_ > 0.0)) {
     return absl::InvalidArgumentError("target has no two distinct points (sampling distance 0)");
   }
-  target->surface_ =
-      AnalyzeSurface(target->cloud_.points, *target->tree_,
-                     options.analysis_radius_d * target->sampling_distance_,
-                     target->cloud_.viewpoint);
+  target->surface_ = AnalyzeSurface(target->cloud_.points, *target->tree_,
+                                    options.analysis_radius_d * target->sampling_distance_,
+                                    target->cloud_.viewpoint);
   target->build_seconds_ =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return std::shared_ptr<const Target>(std::move(target));

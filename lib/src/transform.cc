@@ -1,5 +1,7 @@
 #include "mlsreg/transform.h"
 
+#include <Eigen/Geometry>
+#include <Eigen/SVD>
 #include <charconv>
 #include <cmath>
 #include <fstream>
@@ -7,9 +9,6 @@
 #include <random>
 #include <sstream>
 #include <vector>
-
-#include <Eigen/Geometry>
-#include <Eigen/SVD>
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
@@ -23,7 +22,8 @@ absl::Status CheckRigid(const Matrix4& m, std::string_view field, double toleran
     return absl::InvalidArgumentError(name + " must have last row 0 0 0 1");
   }
   const Eigen::Matrix3d r = m.topLeftCorner<3, 3>();
-  const double orthogonality = (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  const double orthogonality =
+      (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
   if (orthogonality > tolerance) {
     return absl::InvalidArgumentError(absl::StrCat(
         name, " is not rigid: its rotation block is not orthonormal (max |R^T R - I| = ",
@@ -89,8 +89,8 @@ absl::StatusOr<Matrix4> ParseTransform(std::string_view text_or_path, std::strin
     // Not numbers: try it as a file.
     std::ifstream file(text);
     if (!file) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          name, ": '", text, "' is neither 16 numbers nor a readable file"));
+      return absl::InvalidArgumentError(
+          absl::StrCat(name, ": '", text, "' is neither 16 numbers nor a readable file"));
     }
     std::stringstream buffer;
     buffer << file.rdbuf();
@@ -101,8 +101,8 @@ absl::StatusOr<Matrix4> ParseTransform(std::string_view text_or_path, std::strin
     }
   }
   if (numbers.size() != 16) {
-    return absl::InvalidArgumentError(absl::StrCat(name, " needs 16 numbers (row-major 4x4), got ",
-                                                   numbers.size()));
+    return absl::InvalidArgumentError(
+        absl::StrCat(name, " needs 16 numbers (row-major 4x4), got ", numbers.size()));
   }
   Matrix4 m;
   for (int r = 0; r < 4; ++r) {

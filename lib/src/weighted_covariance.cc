@@ -11,8 +11,7 @@ constexpr double kDegenerateRatio = 1e-10;
 bool WeightedCovariance::Finalize(LocalFrame& frame) const {
   if (count_ < 3 || !(sum_w_ > 0.0)) return false;
   const Vec3 mean_offset = sum_wd_ / sum_w_;
-  const Eigen::Matrix3d covariance =
-      sum_wdd_ / sum_w_ - mean_offset * mean_offset.transpose();
+  const Eigen::Matrix3d covariance = sum_wdd_ / sum_w_ - mean_offset * mean_offset.transpose();
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance);
   if (solver.info() != Eigen::Success) return false;
   Vec3 lambda = solver.eigenvalues().cwiseMax(0.0);

@@ -50,8 +50,7 @@ inline PointCloud SamplePlaneGrid(double extent, double spacing, double jitter, 
 
 // Uniform random points on a sphere of `radius` centred at the origin (Marsaglia), restricted
 // to z > min_z.
-inline PointCloud SampleSphere(std::size_t count, double radius, double min_z,
-                               std::uint64_t seed) {
+inline PointCloud SampleSphere(std::size_t count, double radius, double min_z, std::uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> gauss(0.0, 1.0);
   PointCloud cloud;

@@ -1,8 +1,8 @@
-#include <cmath>
-#include <numbers>
+#include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
-#include <gtest/gtest.h>
+#include <cmath>
+#include <numbers>
 
 #include "mlsreg/correspondence_filter.h"
 #include "mlsreg/kd_tree.h"
@@ -27,11 +27,11 @@ TEST(CorrespondenceFilterTest, RejectsEachReasonAndCountsIt) {
   std::vector<double> h(6, 0.010);
   std::vector<std::uint8_t> valid(6, 1);
   std::vector<Correspondence> c(6, good);
-  c[1].valid = false;                                         // invalid projection
-  c[2].point = Vec3(0, 0, 10.0);                              // too far
-  c[3].normal = Vec3(1, 0, 1).normalized() * 1.0;             // dot = 0.707 >= 0.7: kept
-  c[4].normal = Vec3(1, 0, 0.9).normalized();                 // dot = 0.669 < 0.7: rejected
-  c[5].curvature = 0.020;                                     // ratio 0.5 < 0.75: rejected
+  c[1].valid = false;                              // invalid projection
+  c[2].point = Vec3(0, 0, 10.0);                   // too far
+  c[3].normal = Vec3(1, 0, 1).normalized() * 1.0;  // dot = 0.707 >= 0.7: kept
+  c[4].normal = Vec3(1, 0, 0.9).normalized();      // dot = 0.669 < 0.7: rejected
+  c[5].curvature = 0.020;                          // ratio 0.5 < 0.75: rejected
   CorrespondenceFilterOptions options;
   options.max_distance = 1.0;
   const CorrespondenceFilter filter(options);
@@ -160,8 +160,8 @@ TEST(MetricsTest, RmseOfPureTranslationIsItsLength) {
   EXPECT_FALSE(e.success);  // 5 d is not < 5 d
   EXPECT_NEAR(e.translation_d, 5.0, 1e-12);
   EXPECT_NEAR(e.rotation_deg, 0.0, 1e-9);
-  const PoseError rotated = EvaluatePose(points, RandomPerturbation(3.0, 0.0, Vec3::Zero(), 1),
-                                         truth, 1.0);
+  const PoseError rotated =
+      EvaluatePose(points, RandomPerturbation(3.0, 0.0, Vec3::Zero(), 1), truth, 1.0);
   EXPECT_NEAR(rotated.rotation_deg, 3.0, 1e-9);
 }
 

@@ -1,9 +1,9 @@
 #include "mlsreg/mls_projector.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <random>
-
-#include <gtest/gtest.h>
 
 #include "mlsreg/height_field_fit.h"
 #include "mlsreg/kd_tree.h"
@@ -45,11 +45,12 @@ TEST(WendlandHeightFieldTest, CubicFitReproducesCubicExactly) {
 
 TEST(WendlandHeightFieldTest, FallsBackToLowerDegreeWithFewSamples) {
   HeightFieldFit fit(3);
-  // 4 samples: enough for a plane (3 coefficients), not for a quadratic (6).
-  fit.Add(0, 0, 1.0, 1);
-  fit.Add(1, 0, 2.0, 1);
-  fit.Add(0, 1, 3.0, 1);
-  fit.Add(1, 1, 4.0, 1);
+  // 8 equally weighted samples of f = 1 + x + 2y: enough for a plane (3 coefficients, needs an
+  // effective sample size of 6), not for a quadratic (6 coefficients, needs 12).
+  for (int i = 0; i < 8; ++i) {
+    const double x = i % 3, y = i / 3;
+    fit.Add(x, y, 1.0 + x + 2.0 * y, 1.0);
+  }
   HeightField h;
   ASSERT_TRUE(fit.Finalize(h));
   EXPECT_EQ(h.degree, 1);
@@ -200,8 +201,7 @@ TEST(MlsProjectorTest, WarmStartOnTangentPlaneAgreesWithColdStart) {
     const Vec3 query = dir * (1.0 + d * g(rng));
     const MlsProjection previous = projector.Project(dir * 1.0 + Vec3(d, 0, 0) * 0.5, ws);
     ASSERT_EQ(previous.status, ProjectionStatus::kOk);
-    const Vec3 start =
-        query - (query - previous.point).dot(previous.normal) * previous.normal;
+    const Vec3 start = query - (query - previous.point).dot(previous.normal) * previous.normal;
     const MlsProjection warm = projector.ProjectFrom(start, ws);
     const MlsProjection cold = projector.Project(query, ws);
     ASSERT_EQ(warm.status, ProjectionStatus::kOk);

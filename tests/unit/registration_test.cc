@@ -1,8 +1,8 @@
 #include "mlsreg/registration.h"
 
-#include <atomic>
-
 #include <gtest/gtest.h>
+
+#include <atomic>
 
 #include "mlsreg/metrics.h"
 #include "support/synthetic.h"
@@ -32,7 +32,8 @@ SyntheticPair MakePair(double noise_d) {
   pair.truth = RandomPerturbation(12.0, 0.1, Vec3(0.0, 0.0, 0.0), 3);
   const Matrix4 inverse = pair.truth.inverse();
   for (const Vec3& p : in_target_frame.points) {
-    pair.source.points.push_back(inverse.topLeftCorner<3, 3>() * p + inverse.topRightCorner<3, 1>());
+    pair.source.points.push_back(inverse.topLeftCorner<3, 3>() * p +
+                                 inverse.topRightCorner<3, 1>());
   }
   return pair;
 }

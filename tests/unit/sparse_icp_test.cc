@@ -1,9 +1,9 @@
 #include "mlsreg/sparse_icp.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <random>
-
-#include <gtest/gtest.h>
 
 #include "mlsreg/rigid_motion.h"
 #include "mlsreg/transform.h"
@@ -39,7 +39,9 @@ TEST(LpShrinkTest, ZeroBelowThresholdAndApproachesIdentityFarAway) {
   EXPECT_NEAR(LpShrinkWeight(2.0, mu, 1.0) * 2.0, 2.0 - 1.0 / mu, 1e-12);
   // The prox minimises |z|^p + mu/2 (z - h)^2: check against a dense 1-D search.
   for (double h : {0.4, 0.7, 1.5, 3.0}) {
-    auto objective = [&](double z) { return std::pow(std::abs(z), p) + 0.5 * mu * (z - h) * (z - h); };
+    auto objective = [&](double z) {
+      return std::pow(std::abs(z), p) + 0.5 * mu * (z - h) * (z - h);
+    };
     double best_z = 0, best = objective(0);
     for (double z = 0; z <= h; z += 1e-5) {
       if (objective(z) < best) best = objective(z), best_z = z;

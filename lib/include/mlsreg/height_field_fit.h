@@ -1,9 +1,8 @@
 // HeightFieldFit: weighted least-squares bivariate polynomial f = g(x, y) over a reference plane.
 #pragma once
 
-#include <array>
-
 #include <Eigen/Core>
+#include <array>
 
 namespace mlsreg {
 
@@ -21,12 +20,15 @@ struct HeightField {
 };
 
 constexpr int kMaxHeightFieldDegree = 3;
+constexpr double kSamplesPerCoefficient = 2.0;
 constexpr int MonomialCount(int degree) { return (degree + 1) * (degree + 2) / 2; }
 
 // Accumulate weighted samples (x, y, f), then Finalize. Coordinates should be scaled to O(1)
-// (e.g. divided by the support radius) for conditioning. Finalize tries the requested degree and
-// falls back to lower degrees when there are too few samples or the system is ill-conditioned.
-// No heap allocation.
+// (e.g. divided by the support radius) for conditioning. Finalize uses the requested degree only
+// when the neighbourhood supports it: the effective sample size (sum w)^2 / sum w^2 must be at
+// least kSamplesPerCoefficient times the number of coefficients, and the system well conditioned;
+// otherwise it falls back to lower degrees. (A cubic through 20 scan-line samples extrapolates
+// wildly; sparse real scans need this.) No heap allocation.
 class HeightFieldFit {
  public:
   explicit HeightFieldFit(int degree);
@@ -39,6 +41,8 @@ class HeightFieldFit {
  private:
   int degree_;
   int count_ = 0;
+  double sum_w_ = 0.0;
+  double sum_w2_ = 0.0;
   Eigen::Matrix<double, 10, 10> normal_matrix_ = Eigen::Matrix<double, 10, 10>::Zero();
   Eigen::Matrix<double, 10, 1> rhs_ = Eigen::Matrix<double, 10, 1>::Zero();
 };

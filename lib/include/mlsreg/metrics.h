@@ -14,10 +14,10 @@ double GroundTruthRmse(std::span<const Vec3> source_points, const Matrix4& estim
                        const Matrix4& truth);
 
 struct PoseError {
-  double rmse_d = 0.0;          // Eq. 10: RMSE in units of the sampling distance d
-  bool success = false;         // rmse_d < success_threshold_d (paper: 5 d)
-  double rotation_deg = 0.0;    // angle of R_truth^T R_estimate
-  double translation_d = 0.0;   // |t_estimate - t_truth| / d
+  double rmse_d = 0.0;         // Eq. 10: RMSE in units of the sampling distance d
+  bool success = false;        // rmse_d < success_threshold_d (paper: 5 d)
+  double rotation_deg = 0.0;   // angle of R_truth^T R_estimate
+  double translation_d = 0.0;  // |t_estimate - t_truth| / d
 };
 
 PoseError EvaluatePose(std::span<const Vec3> source_points, const Matrix4& estimate,

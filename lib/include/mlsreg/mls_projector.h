@@ -22,7 +22,7 @@ struct MlsOptions {
   double tolerance = 0.0;
   // Neighbours are gathered within radius * (1 + search_margin) and reused while the iterate
   // stays within radius * search_margin of where they were gathered (same result, fewer searches).
-  double search_margin = 0.25;
+  double search_margin = 0.0;
   // A query with fewer than 3 target samples within r cannot start Algorithm 1. When true, the
   // iteration starts from the nearest target sample instead (an MLS-smoothed closest point);
   // when false such queries fail with kTooFewNeighbors.

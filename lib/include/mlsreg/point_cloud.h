@@ -1,11 +1,11 @@
 // PointCloud: the validated in-memory form of a scan.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstddef>
 #include <optional>
 #include <vector>
 
-#include <Eigen/Core>
 #include "absl/status/status.h"
 
 namespace mlsreg {

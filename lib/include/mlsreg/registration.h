@@ -26,34 +26,34 @@ std::vector<Method> AllMethods();
 
 // Every length below is in units of the target's sampling distance d (paper Eq. 11).
 struct MlsParams {
-  double radius_d = 5.0;       // Wendland support r (paper Table 2: 5d, 8d for high noise)
-  int polynomial_degree = 3;   // paper Table 2: g = 3
-  int max_iterations = 20;     // paper Table 2
-  bool warm_start = true;      // start each projection from the previous one's tangent plane
+  double radius_d = 5.0;      // Wendland support r (paper Table 2: 5d, 8d for high noise)
+  int polynomial_degree = 3;  // paper Table 2: g = 3
+  int max_iterations = 20;    // paper Table 2
+  bool warm_start = true;     // start each projection from the previous one's tangent plane
 };
 
 struct FilterParams {
-  double min_normal_dot = 0.7;       // tau_N; <= -1 disables
-  double min_curvature_ratio = 0.75; // tau_H; 0 disables
-  double max_distance_d = 0.0;       // 0 disables
+  double min_normal_dot = 0.7;        // tau_N; <= -1 disables
+  double min_curvature_ratio = 0.75;  // tau_H; 0 disables
+  double max_distance_d = 0.0;        // 0 disables
 };
 
 struct RegistrationOptions {
   Method method = Method::kMlsSicp;
-  int num_samples = 2000;        // random source samples (paper: 1,000-2,000)
-  std::uint64_t seed = 1;        // subsampling seed
-  int max_iterations = 100;      // ICP iterations (paper Table 2)
+  int num_samples = 2000;    // random source samples (paper: 1,000-2,000)
+  std::uint64_t seed = 1;    // subsampling seed
+  int max_iterations = 100;  // ICP iterations (paper Table 2)
   // Converged when no source sample moved more than this during an ICP iteration.
-  double convergence_d = 1e-3;
+  double convergence_d = 0.01;
   // Sparse ICP runs on coordinates divided by this length (see SparseIcpOptions::length_unit);
   // its stop threshold is convergence_d in the same units. With mu = 10, alpha = 1.2 and 10
   // ADMM iterations, residuals beyond ~0.32 units start as outliers and beyond ~0.11 units end
   // as outliers: 100 d puts that boundary at ~11 d, several times scanner noise.
   double sicp_length_unit_d = 100.0;
-  SparseIcpOptions sicp;         // length_unit and stop are derived from the two fields above
+  SparseIcpOptions sicp;  // length_unit and stop are derived from the two fields above
   MlsParams mls;
   FilterParams filter;
-  int min_correspondences = 6;   // fewer accepted correspondences end the registration
+  int min_correspondences = 6;  // fewer accepted correspondences end the registration
 };
 
 // Validates every field; the message names it (e.g. "mls.radius_d must be in (0, 100]").
@@ -63,18 +63,18 @@ absl::Status ValidateOptions(const RegistrationOptions& options);
 struct IterationReport {
   int iteration = 0;                        // 1-based
   Matrix4 transform = Matrix4::Identity();  // after this iteration's update
-  double rmse = 0.0;     // RMSE of this iteration's accepted correspondences (absolute units)
-  double rmse_d = 0.0;   // the same in units of d
+  double rmse = 0.0;    // RMSE of this iteration's accepted correspondences (absolute units)
+  double rmse_d = 0.0;  // the same in units of d
   CorrespondenceCounts counts;
   int admm_iterations = 0;
-  double elapsed_seconds = 0.0;             // since Register was called
+  double elapsed_seconds = 0.0;  // since Register was called
 };
 
 enum class Termination {
-  kConverged,               // samples stopped moving (convergence_d)
-  kMaxIterations,           // max_iterations reached
-  kCancelled,               // should_stop returned true
-  kTooFewCorrespondences,   // fewer than min_correspondences survived the filters
+  kConverged,              // samples stopped moving, or alternate between two poses
+  kMaxIterations,          // max_iterations reached
+  kCancelled,              // should_stop returned true
+  kTooFewCorrespondences,  // fewer than min_correspondences survived the filters
 };
 std::string_view TerminationName(Termination termination);
 
@@ -82,8 +82,8 @@ std::string_view TerminationName(Termination termination);
 struct PhaseTimings {
   double preprocessing = 0.0;  // source analysis (the target's is cached in Target)
   double subsampling = 0.0;
-  double matching = 0.0;       // correspondence search + filtering
-  double optimisation = 0.0;   // Sparse ICP ADMM
+  double matching = 0.0;      // correspondence search + filtering
+  double optimisation = 0.0;  // Sparse ICP ADMM
   double total = 0.0;
 };
 

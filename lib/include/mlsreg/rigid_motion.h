@@ -1,9 +1,8 @@
 // Closed-form and linearised weighted rigid-motion estimators used inside Sparse ICP.
 #pragma once
 
-#include <span>
-
 #include <Eigen/Geometry>
+#include <span>
 
 #include "mlsreg/point_cloud.h"
 

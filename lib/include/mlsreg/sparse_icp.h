@@ -15,12 +15,12 @@ enum class SicpMetric { kPointToPoint, kPointToPlane };
 
 struct SparseIcpOptions {
   SicpMetric metric = SicpMetric::kPointToPlane;  // paper Table 2
-  double p = 0.5;         // lp exponent (paper Table 2)
-  double mu = 10.0;       // initial ADMM penalty, reset at every ICP iteration (reference impl.)
-  double alpha = 1.2;     // penalty growth per outer iteration
-  double max_mu = 1e5;    // penalty cap
-  int max_outer = 10;     // ADMM iterations per ICP iteration (paper Table 2)
-  int max_inner = 1;      // 1 = ADMM; > 1 alternates z and (R, t) before each multiplier update
+  double p = 0.5;                                 // lp exponent (paper Table 2)
+  double mu = 10.0;     // initial ADMM penalty, reset at every ICP iteration (reference impl.)
+  double alpha = 1.2;   // penalty growth per outer iteration
+  double max_mu = 1e5;  // penalty cap
+  int max_outer = 10;   // ADMM iterations per ICP iteration (paper Table 2)
+  int max_inner = 1;    // 1 = ADMM; > 1 alternates z and (R, t) before each multiplier update
   // Stop the ADMM when primal and dual residuals fall below this, in solver units (below).
   double stop = 1e-5;
   bool use_penalty = false;  // penalty method: no multiplier update

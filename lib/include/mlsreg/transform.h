@@ -1,11 +1,10 @@
 // Rigid 4x4 transforms at the boundary: parsing, validation, formatting, seeded perturbations.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <string>
 #include <string_view>
-
-#include <Eigen/Core>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"

@@ -9,8 +9,8 @@ namespace mlsreg {
 
 // The result of a weighted principal component analysis of a neighbourhood.
 struct LocalFrame {
-  Vec3 mean = Vec3::Zero();    // weighted mean of the neighbours
-  Vec3 normal = Vec3::UnitZ(); // eigenvector of the smallest eigenvalue (sign arbitrary)
+  Vec3 mean = Vec3::Zero();     // weighted mean of the neighbours
+  Vec3 normal = Vec3::UnitZ();  // eigenvector of the smallest eigenvalue (sign arbitrary)
   Vec3 tangent_u = Vec3::UnitX();
   Vec3 tangent_v = Vec3::UnitY();
   Vec3 eigenvalues = Vec3::Zero();  // ascending: lambda1 <= lambda2 <= lambda3

@@ -1,0 +1,229 @@
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
+#include "absl/strings/str_split.h"
+#include "cli/commands.h"
+#include "cli/registration_flags.h"
+#include "mlsreg/evaluation.h"
+
+namespace mlsreg::cli {
+namespace {
+
+struct EvalArgs {
+  std::vector<std::string> manifests;
+  std::string methods = "cp-sicp,mls-sicp";
+  std::string out;
+  double angle_deg = 0.0;
+  double translation_d = 0.0;
+  std::uint64_t perturb_seed = 1;
+  int jobs = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  RegistrationFlags flags;
+};
+
+int Fail(const absl::Status& status) {
+  std::fprintf(stderr, "mlsreg eval: %s\n", std::string(status.message()).c_str());
+  return status.code() == absl::StatusCode::kInvalidArgument ? 2 : 1;
+}
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+std::string TraceColumn(const RegistrationResult& r, bool elapsed) {
+  std::vector<std::string> parts;
+  for (const IterationReport& it : r.trace) {
+    parts.push_back(absl::StrFormat("%.5g", elapsed ? it.elapsed_seconds : it.rmse_d));
+  }
+  return absl::StrJoin(parts, " ");
+}
+
+const char* kFixedColumns[] = {"manifest",
+                               "id",
+                               "method",
+                               "source",
+                               "target",
+                               "status",
+                               "rmse_d",
+                               "success",
+                               "rotation_error_deg",
+                               "translation_error_d",
+                               "initial_rmse_d",
+                               "iterations",
+                               "termination",
+                               "converged",
+                               "sampling_distance",
+                               "time_total_s",
+                               "time_preprocessing_s",
+                               "time_subsampling_s",
+                               "time_matching_s",
+                               "time_optimisation_s",
+                               "target_build_s",
+                               "trace_rmse_d",
+                               "trace_elapsed_s"};
+
+class ProgressPrinter {
+ public:
+  explicit ProgressPrinter(bool terminal) : terminal_(terminal) {}
+  void Update(std::size_t done, std::size_t total, const std::string& line) {
+    if (terminal_) {
+      const int width = 30;
+      const int filled = static_cast<int>(width * done / std::max<std::size_t>(total, 1));
+      std::fprintf(stderr, "\r[%s%s] %zu/%zu %-60.60s", std::string(filled, '#').c_str(),
+                   std::string(width - filled, '.').c_str(), done, total, line.c_str());
+      if (done == total) std::fprintf(stderr, "\n");
+    } else {
+      std::fprintf(stderr, "[%zu/%zu] %s\n", done, total, line.c_str());
+    }
+    std::fflush(stderr);
+  }
+
+ private:
+  bool terminal_;
+};
+
+int RunEval(const EvalArgs& args) {
+  auto registration = args.flags.ToOptions();
+  if (!registration.ok()) return Fail(registration.status());
+  EvaluationOptions options;
+  options.registration = *registration;
+  options.perturbation = {args.angle_deg, args.translation_d, args.perturb_seed};
+  options.jobs = args.jobs;
+  options.methods.clear();
+  for (absl::string_view name : absl::StrSplit(args.methods, ',', absl::SkipEmpty())) {
+    auto method = ParseMethod(std::string_view(name.data(), name.size()));
+    if (!method.ok()) return Fail(method.status());
+    options.methods.push_back(*method);
+  }
+  if (options.methods.empty()) return Fail(absl::InvalidArgumentError("--methods is empty"));
+
+  std::vector<std::string> extra_columns;
+  std::vector<std::string> rows;
+  std::map<Method, std::vector<double>> rmse_by_method, time_by_method;
+  std::map<Method, int> successes, runs;
+  ProgressPrinter progress(isatty(fileno(stderr)));
+  for (const std::string& path : args.manifests) {
+    auto manifest = ReadManifest(path);
+    if (!manifest.ok()) return Fail(manifest.status());
+    for (const std::string& c : manifest->extra_columns) {
+      if (std::find(extra_columns.begin(), extra_columns.end(), c) == extra_columns.end()) {
+        extra_columns.push_back(c);
+      }
+    }
+    auto outcomes = RunEvaluation(
+        *manifest, options, [&](const ProblemOutcome& o, std::size_t done, std::size_t total) {
+          const RegistrationProblem& p = manifest->problems[o.problem_index];
+          progress.Update(
+              done, total,
+              o.status.ok()
+                  ? absl::StrFormat("%s %s: %.3f d", p.id, MethodName(o.method), o.error.rmse_d)
+                  : absl::StrFormat("%s %s: ERROR %s", p.id, MethodName(o.method),
+                                    std::string(o.status.message())));
+        });
+    if (!outcomes.ok()) return Fail(outcomes.status());
+    for (const ProblemOutcome& o : *outcomes) {
+      const RegistrationProblem& p = manifest->problems[o.problem_index];
+      std::vector<std::string> f = {path, p.id, std::string(MethodName(o.method)), p.source_path,
+                                    p.target_path};
+      ++runs[o.method];
+      if (!o.status.ok()) {
+        f.push_back(std::string(o.status.message()));
+        f.resize(std::size(kFixedColumns));
+      } else {
+        const RegistrationResult& r = o.result;
+        f.push_back("ok");
+        for (double v : {o.error.rmse_d}) f.push_back(absl::StrFormat("%.6g", v));
+        f.push_back(o.error.success ? "1" : "0");
+        f.push_back(absl::StrFormat("%.6g", o.error.rotation_deg));
+        f.push_back(absl::StrFormat("%.6g", o.error.translation_d));
+        f.push_back(absl::StrFormat("%.6g", o.initial_error.rmse_d));
+        f.push_back(absl::StrFormat("%d", r.iterations));
+        f.push_back(std::string(TerminationName(r.termination)));
+        f.push_back(r.converged ? "1" : "0");
+        f.push_back(absl::StrFormat("%.9g", r.sampling_distance));
+        for (double t : {r.timings.total, r.timings.preprocessing, r.timings.subsampling,
+                         r.timings.matching, r.timings.optimisation, o.target_build_seconds}) {
+          f.push_back(absl::StrFormat("%.6g", t));
+        }
+        f.push_back(TraceColumn(r, false));
+        f.push_back(TraceColumn(r, true));
+        rmse_by_method[o.method].push_back(o.error.rmse_d);
+        time_by_method[o.method].push_back(r.timings.total);
+        successes[o.method] += o.error.success;
+      }
+      for (const std::string& c : extra_columns) {
+        std::string value;
+        for (const auto& [name, v] : p.extra) {
+          if (name == c) value = v;
+        }
+        f.push_back(value);
+      }
+      std::vector<std::string> quoted;
+      for (const std::string& s : f) quoted.push_back(CsvField(s));
+      rows.push_back(absl::StrJoin(quoted, ","));
+    }
+  }
+
+  std::vector<std::string> header(std::begin(kFixedColumns), std::end(kFixedColumns));
+  header.insert(header.end(), extra_columns.begin(), extra_columns.end());
+  const std::string csv = absl::StrJoin(header, ",") + "\n" + absl::StrJoin(rows, "\n") + "\n";
+  if (args.out.empty() || args.out == "-") {
+    std::fputs(csv.c_str(), stdout);
+  } else {
+    std::ofstream out(args.out);
+    out << csv;
+    if (!out) return Fail(absl::UnavailableError("cannot write '" + args.out + "'"));
+  }
+
+  std::FILE* summary = args.out.empty() || args.out == "-" ? stderr : stdout;
+  std::fprintf(summary, "%-10s %5s %9s %14s %14s %12s\n", "method", "runs", "success",
+               "median RMSE/d", "mean RMSE/d", "median time");
+  for (Method m : options.methods) {
+    const std::vector<double>& e = rmse_by_method[m];
+    double mean = 0.0;
+    for (double v : e) mean += v;
+    if (!e.empty()) mean /= static_cast<double>(e.size());
+    std::fprintf(summary, "%-10s %5d %4d/%-4d %14.4f %14.4f %10.3f s\n",
+                 std::string(MethodName(m)).c_str(), runs[m], successes[m], runs[m], Median(e),
+                 mean, Median(time_by_method[m]));
+  }
+  for (Method m : options.methods) {
+    if (successes[m] != runs[m]) return 3;  // some run failed or missed 5 d
+  }
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner AddEvalCommand(CLI::App& app) {
+  auto args = std::make_shared<EvalArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "eval", "run methods over manifests with ground truth (id,source,target,gt[,init])");
+  cmd->add_option("--pairs", args->manifests, "manifest CSV (repeatable)")->required();
+  cmd->add_option("--methods", args->methods, "comma-separated methods")->capture_default_str();
+  cmd->add_option("--out", args->out, "results CSV (default: stdout)");
+  cmd->add_option("--perturb-angle", args->angle_deg,
+                  "rotate each start pose by this angle (degrees) about a seeded random axis")
+      ->capture_default_str();
+  cmd->add_option("--perturb-translation", args->translation_d,
+                  "and translate it by this many d in a seeded random direction")
+      ->capture_default_str();
+  cmd->add_option("--perturb-seed", args->perturb_seed, "perturbation seed")->capture_default_str();
+  cmd->add_option("--jobs", args->jobs, "registrations run in parallel")->capture_default_str();
+  args->flags.AddTo(*cmd, /*method_flag=*/false);
+  return [args] { return RunEval(*args); };
+}
+
+}  // namespace mlsreg::cli

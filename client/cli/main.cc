@@ -1,0 +1,23 @@
+// mlsreg: point-cloud registration with moving-least-squares correspondences in Sparse ICP.
+#include <cstdio>
+#include <vector>
+
+#include "cli/commands.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"mlsreg: rigid point-cloud registration with MLS correspondences in Sparse ICP"};
+  app.require_subcommand(1);
+  std::vector<std::pair<CLI::App*, mlsreg::cli::CommandRunner>> commands;
+  auto add = [&](mlsreg::cli::CommandRunner (*adder)(CLI::App&)) {
+    const std::size_t before = app.get_subcommands({}).size();
+    mlsreg::cli::CommandRunner run = adder(app);
+    commands.emplace_back(app.get_subcommands({})[before], std::move(run));
+  };
+  add(&mlsreg::cli::AddRegisterCommand);
+  add(&mlsreg::cli::AddEvalCommand);
+  CLI11_PARSE(app, argc, argv);
+  for (auto& [sub, run] : commands) {
+    if (sub->parsed()) return run();
+  }
+  return 2;
+}

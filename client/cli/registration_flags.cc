@@ -1,0 +1,59 @@
+#include "cli/registration_flags.h"
+
+namespace mlsreg::cli {
+
+void RegistrationFlags::AddTo(CLI::App& app, bool method_flag) {
+  if (method_flag) {
+    app.add_option("--method", method_, "cp-sicp | mls-sicp")->capture_default_str();
+  }
+  app.add_option("--samples", options_.num_samples, "random source samples")->capture_default_str();
+  app.add_option("--seed", options_.seed, "subsampling seed")->capture_default_str();
+  app.add_option("--max-iterations", options_.max_iterations, "ICP iterations")
+      ->capture_default_str();
+  app.add_option("--convergence", options_.convergence_d,
+                 "stop when no sample moves more than this (units of d)")
+      ->capture_default_str();
+  app.add_option("--mls-radius", options_.mls.radius_d, "MLS support radius r (units of d)")
+      ->capture_default_str();
+  app.add_option("--mls-degree", options_.mls.polynomial_degree, "MLS polynomial degree (0-3)")
+      ->capture_default_str();
+  app.add_option("--mls-max-iterations", options_.mls.max_iterations,
+                 "iterations of one MLS projection")
+      ->capture_default_str();
+  app.add_flag("!--no-warm-start", options_.mls.warm_start,
+               "start every MLS projection from the query itself");
+  app.add_option("--tau-n", options_.filter.min_normal_dot,
+                 "normal filter: min <n1,n2> (-1 disables)")
+      ->capture_default_str();
+  app.add_option("--tau-h", options_.filter.min_curvature_ratio,
+                 "curvature filter: min H1/H2 ratio (0 disables)")
+      ->capture_default_str();
+  app.add_option("--max-distance", options_.filter.max_distance_d,
+                 "reject correspondences farther than this (units of d; 0 disables)")
+      ->capture_default_str();
+  app.add_option("--sicp-p", options_.sicp.p, "Sparse ICP lp exponent")->capture_default_str();
+  app.add_option("--sicp-outer", options_.sicp.max_outer, "ADMM iterations per ICP iteration")
+      ->capture_default_str();
+  app.add_option("--sicp-unit", options_.sicp_length_unit_d, "Sparse ICP length unit (units of d)")
+      ->capture_default_str();
+  app.add_option("--sicp-metric", metric_, "point-to-plane | point-to-point")
+      ->capture_default_str();
+}
+
+absl::StatusOr<RegistrationOptions> RegistrationFlags::ToOptions() const {
+  RegistrationOptions options = options_;
+  auto method = ParseMethod(method_);
+  if (!method.ok()) return method.status();
+  options.method = *method;
+  if (metric_ == "point-to-plane") {
+    options.sicp.metric = SicpMetric::kPointToPlane;
+  } else if (metric_ == "point-to-point") {
+    options.sicp.metric = SicpMetric::kPointToPoint;
+  } else {
+    return absl::InvalidArgumentError("sicp-metric: must be point-to-plane or point-to-point");
+  }
+  if (absl::Status s = ValidateOptions(options); !s.ok()) return s;
+  return options;
+}
+
+}  // namespace mlsreg::cli

@@ -1,0 +1,85 @@
+#include "cli/report.h"
+
+#include "absl/strings/str_format.h"
+
+namespace mlsreg::cli {
+namespace {
+nlohmann::json MatrixJson(const Matrix4& m) {
+  nlohmann::json values = nlohmann::json::array();
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) values.push_back(m(r, c));
+  }
+  return values;
+}
+}  // namespace
+
+std::string FormatIteration(const IterationReport& r) {
+  return absl::StrFormat(
+      "iter %3d  rmse %8.4f d  matched %5d  rejected normal %4d curvature %4d distance %4d  "
+      "invalid %4d  admm %2d  %7.3f s",
+      r.iteration, r.rmse_d, r.counts.matched, r.counts.rejected_normal,
+      r.counts.rejected_curvature, r.counts.rejected_distance, r.counts.invalid, r.admm_iterations,
+      r.elapsed_seconds);
+}
+
+std::string FormatResult(const RegistrationResult& result, const std::optional<PoseError>& error) {
+  std::string out = absl::StrFormat("result: %s after %d iterations in %.3f s (d = %.6g)\n",
+                                    TerminationName(result.termination), result.iterations,
+                                    result.timings.total, result.sampling_distance);
+  out += "transform (source -> target, row-major):\n";
+  for (int r = 0; r < 4; ++r) {
+    out += absl::StrFormat("  % .9f % .9f % .9f % .9f\n", result.transform(r, 0),
+                           result.transform(r, 1), result.transform(r, 2), result.transform(r, 3));
+  }
+  if (error) {
+    out += absl::StrFormat(
+        "against ground truth: RMSE %.4f d (%s at 5 d), rotation error %.4f deg, translation "
+        "error %.4f d\n",
+        error->rmse_d, error->success ? "success" : "FAILURE", error->rotation_deg,
+        error->translation_d);
+  }
+  return out;
+}
+
+nlohmann::json IterationJson(const IterationReport& r) {
+  return {{"iteration", r.iteration},
+          {"rmse", r.rmse},
+          {"rmse_d", r.rmse_d},
+          {"matched", r.counts.matched},
+          {"rejected_normal", r.counts.rejected_normal},
+          {"rejected_curvature", r.counts.rejected_curvature},
+          {"rejected_distance", r.counts.rejected_distance},
+          {"invalid", r.counts.invalid},
+          {"admm_iterations", r.admm_iterations},
+          {"elapsed_seconds", r.elapsed_seconds},
+          {"transform", MatrixJson(r.transform)}};
+}
+
+nlohmann::json ResultJson(std::string_view method, const RegistrationResult& result,
+                          const std::optional<PoseError>& error) {
+  nlohmann::json trace = nlohmann::json::array();
+  for (const IterationReport& r : result.trace) trace.push_back(IterationJson(r));
+  nlohmann::json j = {{"method", std::string(method)},
+                      {"transform", MatrixJson(result.transform)},
+                      {"converged", result.converged},
+                      {"termination", std::string(TerminationName(result.termination))},
+                      {"iterations", result.iterations},
+                      {"sampling_distance", result.sampling_distance},
+                      {"num_samples", result.num_samples},
+                      {"timings",
+                       {{"preprocessing", result.timings.preprocessing},
+                        {"subsampling", result.timings.subsampling},
+                        {"matching", result.timings.matching},
+                        {"optimisation", result.timings.optimisation},
+                        {"total", result.timings.total}}},
+                      {"trace", trace}};
+  if (error) {
+    j["ground_truth"] = {{"rmse_d", error->rmse_d},
+                         {"success", error->success},
+                         {"rotation_error_deg", error->rotation_deg},
+                         {"translation_error_d", error->translation_d}};
+  }
+  return j;
+}
+
+}  // namespace mlsreg::cli

@@ -1,0 +1,25 @@
+// Human- and machine-readable rendering of registration progress and results.
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+
+#include "mlsreg/metrics.h"
+#include "mlsreg/registration.h"
+
+namespace mlsreg::cli {
+
+// One line per ICP iteration, e.g.
+// "iter   7  rmse 0.8123 d  matched 1523  rejected normal 12 curvature 301 distance 0  invalid 164
+// 0.31 s"
+std::string FormatIteration(const IterationReport& report);
+
+// The final summary block (termination, transform, errors against ground truth when known).
+std::string FormatResult(const RegistrationResult& result, const std::optional<PoseError>& error);
+
+nlohmann::json IterationJson(const IterationReport& report);
+nlohmann::json ResultJson(std::string_view method, const RegistrationResult& result,
+                          const std::optional<PoseError>& error);
+
+}  // namespace mlsreg::cli
