@@ -16,6 +16,8 @@ namespace {
 struct RegisterArgs {
   std::string source, target, init, gt, json;
   bool quiet = false;
+  double perturb_angle = 0.0, perturb_translation = 0.0;
+  std::uint64_t perturb_seed = 1;
   RegistrationFlags flags;
 };
 
@@ -45,6 +47,17 @@ int RunRegister(const RegisterArgs& args) {
   if (!target_cloud.ok()) return Fail(target_cloud.status());
   auto target = Target::Build(*std::move(target_cloud));
   if (!target.ok()) return Fail(target.status());
+  if (args.perturb_angle != 0.0 || args.perturb_translation != 0.0) {
+    // Same protocol as `mlsreg eval`: rotate about the source centroid as placed by --init.
+    Vec3 centroid = Vec3::Zero();
+    for (const Vec3& p : source->points) centroid += p;
+    centroid /= static_cast<double>(source->size());
+    centroid = initial.topLeftCorner<3, 3>() * centroid + initial.topRightCorner<3, 1>();
+    initial = RandomPerturbation(args.perturb_angle,
+                                 args.perturb_translation * (*target)->sampling_distance(),
+                                 centroid, args.perturb_seed) *
+              initial;
+  }
   if (!args.quiet) {
     std::printf("%s: source %zu points, target %zu points, d = %.6g, target prepared in %.3f s\n",
                 std::string(MethodName(options->method)).c_str(), source->size(),
@@ -85,6 +98,11 @@ CommandRunner AddRegisterCommand(CLI::App& app) {
   cmd->add_option("--gt", args->gt, "ground-truth transform, to report the error against");
   cmd->add_option("--json", args->json, "write the result (transform, trace, errors) as JSON");
   cmd->add_flag("--quiet", args->quiet, "print only the result");
+  cmd->add_option("--perturb-angle", args->perturb_angle,
+                  "rotate the start pose by this angle (degrees) about a seeded random axis");
+  cmd->add_option("--perturb-translation", args->perturb_translation,
+                  "and translate it by this many d in a seeded random direction");
+  cmd->add_option("--perturb-seed", args->perturb_seed, "perturbation seed");
   args->flags.AddTo(*cmd);
   return [args] { return RunRegister(*args); };
 }

@@ -1,0 +1,93 @@
+// Speed of the registration core on a real scan pair (bundled Stanford bunny bun000 -> bun045).
+// Run: build/bench/mlsreg_bench  (report ratios between rows of one run; the machine is noisy).
+#include <benchmark/benchmark.h>
+
+#include <memory>
+
+#include "mlsreg/io.h"
+#include "mlsreg/manifest.h"
+#include "mlsreg/mls_projector.h"
+#include "mlsreg/registration.h"
+#include "mlsreg/sampling.h"
+
+namespace mlsreg {
+namespace {
+
+struct BunnyPair {
+  PointCloud source;
+  std::shared_ptr<const Target> target;
+  Matrix4 truth;
+  std::vector<Vec3> queries;  // 2,000 source samples placed by the ground truth
+};
+
+const BunnyPair& Pair() {
+  static const BunnyPair pair = [] {
+    BunnyPair p;
+    const std::string dir = std::string(MLSREG_SOURCE_DIR) + "/data/bunny/";
+    auto manifest = ReadManifest(dir + "pairs.csv");
+    const RegistrationProblem& problem = manifest->problems.at(0);
+    p.source = *ReadPointCloud(problem.source_path);
+    p.target = *Target::Build(*ReadPointCloud(problem.target_path));
+    p.truth = *problem.ground_truth;
+    for (std::uint32_t i : RandomSubsample(p.source.size(), 2000, 1)) {
+      p.queries.push_back(p.truth.topLeftCorner<3, 3>() * p.source.points[i] +
+                          p.truth.topRightCorner<3, 1>());
+    }
+    return p;
+  }();
+  return pair;
+}
+
+void BM_ClosestPoint(benchmark::State& state) {
+  const BunnyPair& p = Pair();
+  for (auto _ : state) {
+    for (const Vec3& q : p.queries) benchmark::DoNotOptimize(p.target->tree().Nearest(q));
+  }
+  state.SetItemsProcessed(state.iterations() * p.queries.size());
+}
+BENCHMARK(BM_ClosestPoint)->Unit(benchmark::kMicrosecond);
+
+// Argument: support radius r in units of d. Cold projections (Algorithm 1 from the query).
+void BM_MlsProjection(benchmark::State& state) {
+  const BunnyPair& p = Pair();
+  MlsOptions options;
+  options.radius = static_cast<double>(state.range(0)) * p.target->sampling_distance();
+  const MlsProjector projector(p.target->points(), p.target->tree(), options);
+  MlsProjector::Workspace workspace;
+  for (auto _ : state) {
+    for (const Vec3& q : p.queries) benchmark::DoNotOptimize(projector.Project(q, workspace));
+  }
+  state.SetItemsProcessed(state.iterations() * p.queries.size());
+}
+BENCHMARK(BM_MlsProjection)->Arg(5)->Arg(8)->Unit(benchmark::kMillisecond);
+
+void BM_TargetBuild(benchmark::State& state) {
+  const BunnyPair& p = Pair();
+  for (auto _ : state) benchmark::DoNotOptimize(Target::Build(p.target->cloud()));
+  state.SetItemsProcessed(state.iterations() * p.target->cloud().size());
+}
+BENCHMARK(BM_TargetBuild)->Unit(benchmark::kMillisecond);
+
+// Argument: 0 = CP-SICP, 1 = MLS-SICP. One full registration from the evaluation protocol's
+// start pose (10 degrees, 10 d from the ground truth), 2,000 samples, paper parameters.
+void BM_Registration(benchmark::State& state) {
+  const BunnyPair& p = Pair();
+  RegistrationOptions options;
+  options.method = state.range(0) == 0 ? Method::kCpSicp : Method::kMlsSicp;
+  const Matrix4 initial =
+      RandomPerturbation(10.0, 10.0 * p.target->sampling_distance(), Vec3::Zero(), 1) * p.truth;
+  int iterations = 0;
+  for (auto _ : state) {
+    auto result = Register(*p.target, p.source, initial, options);
+    iterations = result->iterations;
+    benchmark::DoNotOptimize(result);
+  }
+  state.counters["icp_iterations"] = iterations;
+  state.SetLabel(std::string(MethodName(options.method)));
+}
+BENCHMARK(BM_Registration)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace mlsreg
+
+BENCHMARK_MAIN();
