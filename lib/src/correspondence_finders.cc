@@ -19,7 +19,8 @@ MlsCorrespondenceFinder::MlsCorrespondenceFinder(const Target& target, const Mls
     : projector_(target.points(), target.tree(), options,
                  target.surface().oriented ? &target.surface().normals : nullptr),
       warm_start_(warm_start),
-      oriented_(target.surface().oriented) {}
+      oriented_(target.surface().oriented),
+      radius_(options.radius) {}
 
 void MlsCorrespondenceFinder::Find(std::span<const Vec3> queries, std::span<Correspondence> out) {
   if (previous_.size() != queries.size()) {
@@ -31,7 +32,11 @@ void MlsCorrespondenceFinder::Find(std::span<const Vec3> queries, std::span<Corr
     const Vec3& q = queries[i];
     MlsProjection& previous = previous_[i];
     MlsProjection projection;
-    if (warm_start_ && previous.status == ProjectionStatus::kOk) {
+    // Warm start only from a direct projection that is still within the support of the query;
+    // otherwise (first iteration, far or boundary queries) run Algorithm 1 from the query.
+    if (warm_start_ && previous.status == ProjectionStatus::kOk &&
+        !previous.seeded_from_nearest_sample &&
+        (q - previous.point).squaredNorm() < radius_ * radius_) {
       const Vec3 start = q - (q - previous.point).dot(previous.normal) * previous.normal;
       projection = projector_.ProjectFrom(start, workspace_);
     } else {

@@ -74,6 +74,7 @@ MlsProjection MlsProjector::ProjectFrom(const Vec3& start, Workspace& ws) const 
         s = points_[tree_.Nearest(s).index];
         have_candidates = false;
         reseeded = true;
+        result.seeded_from_nearest_sample = true;
         continue;
       }
       result.status = ProjectionStatus::kTooFewNeighbors;

@@ -23,7 +23,8 @@ class ClosestPointFinder final : public CorrespondenceFinder {
 
 // MLS correspondences (paper Eq. 7): each query is projected onto the MLS surface of the target.
 // With warm starts, the projection of sample i starts from the query projected onto the tangent
-// plane of sample i's previous projection.
+// plane of sample i's previous projection, when that projection was direct (not seeded from the
+// nearest sample) and lies within the support radius of the query.
 class MlsCorrespondenceFinder final : public CorrespondenceFinder {
  public:
   MlsCorrespondenceFinder(const Target& target, const MlsOptions& options, bool warm_start);
@@ -39,6 +40,7 @@ class MlsCorrespondenceFinder final : public CorrespondenceFinder {
   MlsProjector projector_;
   bool warm_start_;
   bool oriented_;
+  double radius_;
   MlsProjector::Workspace workspace_;
   std::vector<MlsProjection> previous_;
   std::vector<ProjectionStatus> status_;

@@ -47,6 +47,9 @@ struct MlsProjection {
   ProjectionStatus status = ProjectionStatus::kTooFewNeighbors;
   int iterations = 0;
   int neighbors = 0;  // samples with non-zero weight in the last fit
+  // True when the query was too far from the target and the iteration started from its nearest
+  // sample (MlsOptions::seed_far_queries_from_nearest_sample).
+  bool seeded_from_nearest_sample = false;
 };
 
 class MlsProjector {
