@@ -22,6 +22,10 @@ void RegistrationFlags::AddTo(CLI::App& app, bool method_flag) {
       ->capture_default_str();
   app.add_flag("!--no-warm-start", options_.mls.warm_start,
                "start every MLS projection from the query itself");
+  app.add_option("--mls-far-queries", far_queries_,
+                 "queries with < 3 target samples within r: seed-until-converged (from the "
+                 "nearest sample, then dropped once converged) | seed | drop (paper Alg. 1)")
+      ->capture_default_str();
   app.add_option("--tau-n", options_.filter.min_normal_dot,
                  "normal filter: min <n1,n2> (-1 disables)")
       ->capture_default_str();
@@ -51,6 +55,16 @@ absl::StatusOr<RegistrationOptions> RegistrationFlags::ToOptions() const {
     options.sicp.metric = SicpMetric::kPointToPoint;
   } else {
     return absl::InvalidArgumentError("sicp-metric: must be point-to-plane or point-to-point");
+  }
+  if (far_queries_ == "seed-until-converged") {
+    options.mls.far_queries = FarQueryPolicy::kSeedUntilConverged;
+  } else if (far_queries_ == "seed") {
+    options.mls.far_queries = FarQueryPolicy::kSeed;
+  } else if (far_queries_ == "drop") {
+    options.mls.far_queries = FarQueryPolicy::kDrop;
+  } else {
+    return absl::InvalidArgumentError(
+        "mls-far-queries: must be seed-until-converged, seed or drop");
   }
   if (absl::Status s = ValidateOptions(options); !s.ok()) return s;
   return options;

@@ -21,6 +21,7 @@ class RegistrationFlags {
   RegistrationOptions options_;
   std::string method_ = "mls-sicp";
   std::string metric_ = "point-to-plane";
+  std::string far_queries_ = "seed-until-converged";
 };
 
 }  // namespace mlsreg::cli

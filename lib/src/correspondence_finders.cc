@@ -15,12 +15,20 @@ void ClosestPointFinder::Find(std::span<const Vec3> queries, std::span<Correspon
 }
 
 MlsCorrespondenceFinder::MlsCorrespondenceFinder(const Target& target, const MlsOptions& options,
-                                                 bool warm_start)
+                                                 bool warm_start, FarQueryPolicy far_queries)
     : projector_(target.points(), target.tree(), options,
                  target.surface().oriented ? &target.surface().normals : nullptr),
       warm_start_(warm_start),
+      far_queries_(far_queries),
       oriented_(target.surface().oriented),
-      radius_(options.radius) {}
+      radius_(options.radius) {
+  projector_.set_seed_far_queries_from_nearest_sample(far_queries != FarQueryPolicy::kDrop);
+}
+
+void MlsCorrespondenceFinder::Refine() {
+  far_queries_ = FarQueryPolicy::kDrop;
+  projector_.set_seed_far_queries_from_nearest_sample(false);
+}
 
 void MlsCorrespondenceFinder::Find(std::span<const Vec3> queries, std::span<Correspondence> out) {
   if (previous_.size() != queries.size()) {

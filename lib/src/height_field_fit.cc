@@ -38,16 +38,36 @@ HeightFieldFit::HeightFieldFit(int degree)
     : degree_(std::clamp(degree, 0, kMaxHeightFieldDegree)) {}
 
 void HeightFieldFit::Add(double x, double y, double f, double weight) {
-  const Eigen::Matrix<double, 10, 1> m = Monomials(x, y);
-  normal_matrix_.selfadjointView<Eigen::Lower>().rankUpdate(m, weight);
-  rhs_.noalias() += (weight * f) * m;
+  double xp[7], yp[7];
+  xp[0] = yp[0] = 1.0;
+  for (int k = 1; k < 7; ++k) {
+    xp[k] = xp[k - 1] * x;
+    yp[k] = yp[k - 1] * y;
+  }
+  for (int a = 0; a <= 6; ++a) {
+    const double wx = weight * xp[a];
+    for (int b = 0; a + b <= 6; ++b) moments_[a][b] += wx * yp[b];
+  }
+  const double wf = weight * f;
+  for (int a = 0; a <= 3; ++a) {
+    const double wfx = wf * xp[a];
+    for (int b = 0; a + b <= 3; ++b) rhs_moments_[a][b] += wfx * yp[b];
+  }
   ++count_;
   sum_w_ += weight;
   sum_w2_ += weight * weight;
 }
 
 bool HeightFieldFit::Finalize(HeightField& out) const {
-  const Eigen::Matrix<double, 10, 10> a = normal_matrix_.selfadjointView<Eigen::Lower>();
+  // Exponents (of x, of y) of the monomials, in HeightField order.
+  static constexpr int kPowX[10] = {0, 1, 0, 2, 1, 0, 3, 2, 1, 0};
+  static constexpr int kPowY[10] = {0, 0, 1, 0, 1, 2, 0, 1, 2, 3};
+  Eigen::Matrix<double, 10, 10> a;
+  Eigen::Matrix<double, 10, 1> rhs;
+  for (int k = 0; k < 10; ++k) {
+    for (int l = 0; l < 10; ++l) a(k, l) = moments_[kPowX[k] + kPowX[l]][kPowY[k] + kPowY[l]];
+    rhs[k] = rhs_moments_[kPowX[k]][kPowY[k]];
+  }
   const double effective_samples = sum_w2_ > 0.0 ? sum_w_ * sum_w_ / sum_w2_ : 0.0;
   for (int degree = degree_; degree >= 0; --degree) {
     const int coefficients = MonomialCount(degree);
@@ -56,16 +76,16 @@ bool HeightFieldFit::Finalize(HeightField& out) const {
     bool solved = false;
     switch (degree) {
       case 3:
-        solved = SolveLeading<10>(a, rhs_, out.coefficients);
+        solved = SolveLeading<10>(a, rhs, out.coefficients);
         break;
       case 2:
-        solved = SolveLeading<6>(a, rhs_, out.coefficients);
+        solved = SolveLeading<6>(a, rhs, out.coefficients);
         break;
       case 1:
-        solved = SolveLeading<3>(a, rhs_, out.coefficients);
+        solved = SolveLeading<3>(a, rhs, out.coefficients);
         break;
       default:
-        solved = SolveLeading<1>(a, rhs_, out.coefficients);
+        solved = SolveLeading<1>(a, rhs, out.coefficients);
         break;
     }
     if (solved) {

@@ -62,6 +62,9 @@ absl::Status ValidateOptions(const RegistrationOptions& o) {
   if (!(o.convergence_d >= 0.0 && o.convergence_d <= 100.0)) {
     return bad("convergence_d", "must be in [0, 100]");
   }
+  if (!(o.coarse_convergence_d >= 0.0 && o.coarse_convergence_d <= 100.0)) {
+    return bad("coarse_convergence_d", "must be in [0, 100]");
+  }
   if (!(o.sicp_length_unit_d > 0.0 && o.sicp_length_unit_d <= 1e6)) {
     return bad("sicp_length_unit_d", "must be in (0, 1e6]");
   }
@@ -113,10 +116,33 @@ std::unique_ptr<CorrespondenceFinder> MakeFinder(Method method, const Target& ta
       mls.radius = options.mls.radius_d * d;
       mls.polynomial_degree = options.mls.polynomial_degree;
       mls.max_iterations = options.mls.max_iterations;
-      return std::make_unique<MlsCorrespondenceFinder>(target, mls, options.mls.warm_start);
+      return std::make_unique<MlsCorrespondenceFinder>(target, mls, options.mls.warm_start,
+                                                       options.mls.far_queries);
     }
   }
   return nullptr;
+}
+
+// Poses remembered to detect that ICP has stopped, or cycles through a few poses: hard filters
+// can make it alternate between two or more poses forever.
+constexpr std::size_t kCycleMemory = 8;
+
+// True when the samples, now at `moved` = transform * samples, are within `threshold` of where
+// one of the recent poses put them: no motion (the newest pose) or a cycle (an older one).
+bool ReturnsToRecentPose(std::span<const Vec3> moved, const RigidTransform& transform,
+                         std::span<const RigidTransform> recent, double threshold) {
+  const double threshold_squared = threshold * threshold;
+  for (const RigidTransform& pose : recent) {
+    // pose * p = back * (transform * p)
+    const RigidTransform back = pose * transform.inverse(Eigen::Isometry);
+    double worst = 0.0;
+    for (const Vec3& y : moved) {
+      worst = std::max(worst, (back * y - y).squaredNorm());
+      if (worst >= threshold_squared) break;
+    }
+    if (worst < threshold_squared) return true;
+  }
+  return false;
 }
 
 // Radius of the source's local analysis: the scale at which the target side's curvature is
@@ -180,14 +206,15 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
 
   // Per-iteration buffers, allocated once.
   const std::size_t m = samples.points.size();
-  std::vector<Vec3> moved(m), moved_normals(m), before(m), two_before(m), partner_points(m),
-      partner_normals(m);
+  std::vector<Vec3> moved(m), moved_normals(m), partner_points(m), partner_normals(m);
   std::vector<Correspondence> correspondences(m);
   std::vector<std::uint8_t> accepted(m);
   solver.Reset(m);
 
   RigidTransform transform(Orthonormalize(initial));
-  const double convergence = options.convergence_d * d;
+  // Poses after the most recent iterations of the current phase, newest first.
+  std::vector<RigidTransform> recent_poses;
+  recent_poses.reserve(kCycleMemory + 1);
   result.termination = Termination::kMaxIterations;
   for (int iteration = 1; iteration <= options.max_iterations; ++iteration) {
     if (callbacks.should_stop && callbacks.should_stop()) {
@@ -219,20 +246,14 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
     bool converged = false;
     if (report.counts.matched >= options.min_correspondences) {
       phase = Clock::now();
-      std::swap(two_before, before);  // the samples where iteration - 1 started
-      before = moved;
+      recent_poses.insert(recent_poses.begin(), transform);
+      if (recent_poses.size() > kCycleMemory) recent_poses.pop_back();
       const RigidTransform increment =
           solver.Step(moved, partner_points, partner_normals, accepted);
       transform = increment * transform;
-      // Converged when the samples stop moving, or when they come back to where they were two
-      // iterations ago: hard filters can make ICP alternate between two poses forever.
-      double max_move = 0.0, max_cycle = 0.0;
-      for (std::size_t i = 0; i < m; ++i) {
-        max_move = std::max(max_move, (moved[i] - before[i]).squaredNorm());
-        max_cycle = std::max(max_cycle, (moved[i] - two_before[i]).squaredNorm());
-      }
-      converged = std::sqrt(max_move) < convergence ||
-                  (iteration >= 3 && std::sqrt(max_cycle) < convergence);
+      const double threshold =
+          (finder->can_refine() ? options.coarse_convergence_d : options.convergence_d) * d;
+      converged = ReturnsToRecentPose(moved, transform, recent_poses, threshold);
       report.admm_iterations = solver.last_outer_iterations();
       result.timings.optimisation += Seconds(phase);
     }
@@ -245,6 +266,11 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
     if (report.counts.matched < options.min_correspondences) {
       result.termination = Termination::kTooFewCorrespondences;
       break;
+    }
+    if (converged && finder->can_refine()) {
+      finder->Refine();  // the finer correspondences get their own run to convergence
+      recent_poses.clear();
+      converged = false;
     }
     if (converged) {
       result.termination = Termination::kConverged;

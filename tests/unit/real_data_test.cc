@@ -64,10 +64,12 @@ TEST(RealDataTest, MlsSicpSucceedsOnEveryStanfordBunnyPair) {
     cp.push_back(c.error.rmse_d);
     mls_wins += m.error.rmse_d < c.error.rmse_d;
   }
-  // Regression bounds from the measured figures (MLS-SICP median 0.46 d, CP-SICP 0.45 d, MLS more
-  // accurate on 10 of 14 pairs); the ground truth itself is good to ~0.5 d.
-  EXPECT_LT(Median(mls), 0.6);
-  EXPECT_GE(mls_wins, 8);
+  // The acceptance: MLS-SICP succeeds everywhere and has a lower median than CP-SICP.
+  // Measured: MLS-SICP median 0.31 d, CP-SICP 0.48 d, MLS better on 11 of 14 pairs; the ground
+  // truth itself is good to ~0.5 d.
+  EXPECT_LT(Median(mls), Median(cp));
+  EXPECT_LT(Median(mls), 0.45);
+  EXPECT_GE(mls_wins, 9);
   RecordProperty("mls_median_rmse_d", std::to_string(Median(mls)));
   RecordProperty("cp_median_rmse_d", std::to_string(Median(cp)));
 }

@@ -27,6 +27,10 @@ class CorrespondenceFinder {
   virtual void Find(std::span<const Vec3> queries, std::span<Correspondence> out) = 0;
   // Whether output normals have a meaningful sign (see CorrespondenceFilterOptions).
   virtual bool oriented_normals() const = 0;
+  // Coarse-to-fine finders: while can_refine() is true the registration converges to the coarse
+  // threshold, then calls Refine() and continues with the finer correspondences.
+  virtual bool can_refine() const { return false; }
+  virtual void Refine() {}
 };
 
 }  // namespace mlsreg

@@ -25,11 +25,20 @@ class ClosestPointFinder final : public CorrespondenceFinder {
 // With warm starts, the projection of sample i starts from the query projected onto the tangent
 // plane of sample i's previous projection, when that projection was direct (not seeded from the
 // nearest sample) and lies within the support radius of the query.
+// What happens to queries with fewer than 3 target samples within r (paper Algorithm 1 cannot
+// start there): seed them from their nearest sample until the registration first converges,
+// then drop them (coarse to fine: robust start, and at the end only queries the MLS surface
+// supports); always seed; or always drop (strict Algorithm 1).
+enum class FarQueryPolicy { kSeedUntilConverged, kSeed, kDrop };
+
 class MlsCorrespondenceFinder final : public CorrespondenceFinder {
  public:
-  MlsCorrespondenceFinder(const Target& target, const MlsOptions& options, bool warm_start);
+  MlsCorrespondenceFinder(const Target& target, const MlsOptions& options, bool warm_start,
+                          FarQueryPolicy far_queries = FarQueryPolicy::kSeedUntilConverged);
   void Find(std::span<const Vec3> queries, std::span<Correspondence> out) override;
   bool oriented_normals() const override { return oriented_; }
+  bool can_refine() const override { return far_queries_ == FarQueryPolicy::kSeedUntilConverged; }
+  void Refine() override;
 
   // Status of each sample's last projection (for statistics and tests).
   const std::vector<ProjectionStatus>& last_status() const { return status_; }
@@ -39,6 +48,7 @@ class MlsCorrespondenceFinder final : public CorrespondenceFinder {
  private:
   MlsProjector projector_;
   bool warm_start_;
+  FarQueryPolicy far_queries_;
   bool oriented_;
   double radius_;
   MlsProjector::Workspace workspace_;

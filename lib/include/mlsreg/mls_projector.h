@@ -74,6 +74,9 @@ class MlsProjector {
   MlsProjection ProjectFrom(const Vec3& start, Workspace& workspace) const;
 
   const MlsOptions& options() const { return options_; }
+  void set_seed_far_queries_from_nearest_sample(bool seed) {
+    options_.seed_far_queries_from_nearest_sample = seed;
+  }
 
  private:
   const std::vector<Vec3>& points_;

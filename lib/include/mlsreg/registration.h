@@ -9,6 +9,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "mlsreg/correspondence_filter.h"
+#include "mlsreg/correspondence_finders.h"
 #include "mlsreg/point_cloud.h"
 #include "mlsreg/sparse_icp.h"
 #include "mlsreg/target.h"
@@ -30,6 +31,8 @@ struct MlsParams {
   int polynomial_degree = 3;  // paper Table 2: g = 3
   int max_iterations = 20;    // paper Table 2
   bool warm_start = true;     // start each projection from the previous one's tangent plane
+  // Queries with < 3 target samples within r (see FarQueryPolicy).
+  FarQueryPolicy far_queries = FarQueryPolicy::kSeedUntilConverged;
 };
 
 struct FilterParams {
@@ -45,6 +48,9 @@ struct RegistrationOptions {
   int max_iterations = 100;  // ICP iterations (paper Table 2)
   // Converged when no source sample moved more than this during an ICP iteration.
   double convergence_d = 0.01;
+  // The same for the coarse phase of coarse-to-fine correspondences (MLS far-query seeding),
+  // which only has to bring the source within reach of the MLS support.
+  double coarse_convergence_d = 0.1;
   // Sparse ICP runs on coordinates divided by this length (see SparseIcpOptions::length_unit);
   // its stop threshold is convergence_d in the same units. With mu = 10, alpha = 1.2 and 10
   // ADMM iterations, residuals beyond ~0.32 units start as outliers and beyond ~0.11 units end
