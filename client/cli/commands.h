@@ -13,5 +13,14 @@ using CommandRunner = std::function<int()>;
 CommandRunner AddRegisterCommand(CLI::App& app);
 // `mlsreg eval`: methods over a manifest with ground truth, one CSV row per run.
 CommandRunner AddEvalCommand(CLI::App& app);
+// `mlsreg serve`: the gRPC server, until SIGTERM/SIGINT (then drains).
+CommandRunner AddServeCommand(CLI::App& app);
+// `mlsreg targets upload|get|list|delete`.
+CommandRunner AddTargetsCommand(CLI::App& app);
+// `mlsreg health` and `mlsreg stats`.
+CommandRunner AddHealthCommand(CLI::App& app);
+CommandRunner AddStatsCommand(CLI::App& app);
+// `mlsreg batch`: many registrations from a manifest against a server.
+CommandRunner AddBatchCommand(CLI::App& app);
 
 }  // namespace mlsreg::cli

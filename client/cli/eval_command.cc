@@ -14,6 +14,7 @@
 #include "absl/strings/str_split.h"
 #include "cli/commands.h"
 #include "cli/registration_flags.h"
+#include "cli/report.h"
 #include "mlsreg/evaluation.h"
 
 namespace mlsreg::cli {
@@ -74,26 +75,6 @@ const char* kFixedColumns[] = {"manifest",
                                "trace_rmse_d",
                                "trace_elapsed_s"};
 
-class ProgressPrinter {
- public:
-  explicit ProgressPrinter(bool terminal) : terminal_(terminal) {}
-  void Update(std::size_t done, std::size_t total, const std::string& line) {
-    if (terminal_) {
-      const int width = 30;
-      const int filled = static_cast<int>(width * done / std::max<std::size_t>(total, 1));
-      std::fprintf(stderr, "\r[%s%s] %zu/%zu %-60.60s", std::string(filled, '#').c_str(),
-                   std::string(width - filled, '.').c_str(), done, total, line.c_str());
-      if (done == total) std::fprintf(stderr, "\n");
-    } else {
-      std::fprintf(stderr, "[%zu/%zu] %s\n", done, total, line.c_str());
-    }
-    std::fflush(stderr);
-  }
-
- private:
-  bool terminal_;
-};
-
 int RunEval(const EvalArgs& args) {
   auto registration = args.flags.ToOptions();
   if (!registration.ok()) return Fail(registration.status());
@@ -113,7 +94,7 @@ int RunEval(const EvalArgs& args) {
   std::vector<std::string> rows;
   std::map<Method, std::vector<double>> rmse_by_method, time_by_method;
   std::map<Method, int> successes, runs;
-  ProgressPrinter progress(isatty(fileno(stderr)));
+  ProgressPrinter progress;
   for (const std::string& path : args.manifests) {
     auto manifest = ReadManifest(path);
     if (!manifest.ok()) return Fail(manifest.status());

@@ -15,6 +15,10 @@ int main(int argc, char** argv) {
   };
   add(&mlsreg::cli::AddRegisterCommand);
   add(&mlsreg::cli::AddEvalCommand);
+  add(&mlsreg::cli::AddTargetsCommand);
+  add(&mlsreg::cli::AddBatchCommand);
+  add(&mlsreg::cli::AddHealthCommand);
+  add(&mlsreg::cli::AddStatsCommand);
   CLI11_PARSE(app, argc, argv);
   for (auto& [sub, run] : commands) {
     if (sub->parsed()) return run();

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "cli/commands.h"
+#include "cli/connection_flags.h"
 #include "cli/registration_flags.h"
 #include "cli/report.h"
 #include "mlsreg/io.h"
@@ -19,11 +20,62 @@ struct RegisterArgs {
   double perturb_angle = 0.0, perturb_translation = 0.0;
   std::uint64_t perturb_seed = 1;
   RegistrationFlags flags;
+  ConnectionFlags connection;
 };
 
 int Fail(const absl::Status& status) {
   std::fprintf(stderr, "mlsreg register: %s\n", std::string(status.message()).c_str());
   return status.code() == absl::StatusCode::kInvalidArgument ? 2 : 1;
+}
+
+void PrintIteration(const IterationReport& r) {
+  std::printf("%s\n", FormatIteration(r).c_str());
+  std::fflush(stdout);
+}
+
+Matrix4 Perturbed(const RegisterArgs& args, const PointCloud& source, const Matrix4& initial,
+                  double d) {
+  if (args.perturb_angle == 0.0 && args.perturb_translation == 0.0) return initial;
+  // Same protocol as `mlsreg eval`: rotate about the source centroid as placed by --init.
+  Vec3 centroid = Vec3::Zero();
+  for (const Vec3& p : source.points) centroid += p;
+  centroid /= static_cast<double>(source.size());
+  centroid = initial.topLeftCorner<3, 3>() * centroid + initial.topRightCorner<3, 1>();
+  return RandomPerturbation(args.perturb_angle, args.perturb_translation * d, centroid,
+                            args.perturb_seed) *
+         initial;
+}
+
+int WriteJson(const RegisterArgs& args, const RegistrationOptions& options,
+              const RegistrationResult& result, const std::optional<PoseError>& error) {
+  if (args.json.empty()) return 0;
+  std::ofstream out(args.json);
+  out << ResultJson(MethodName(options.method), result, error).dump(2) << "\n";
+  if (!out) return Fail(absl::UnavailableError("cannot write --json file '" + args.json + "'"));
+  return 0;
+}
+
+// --server: the target is a cached target id; the registration streams from the server.
+int RunRemote(const RegisterArgs& args, const RegistrationOptions& options,
+              const PointCloud& source, Matrix4 initial, const std::optional<Matrix4>& truth) {
+  auto client = args.connection.Connect();
+  if (!client.ok()) return Fail(client.status());
+  if (args.perturb_angle != 0.0 || args.perturb_translation != 0.0) {
+    auto target = (*client)->GetTarget(args.target);
+    if (!target.ok()) return Fail(target.status());
+    initial = Perturbed(args, source, initial, target->sampling_distance);
+  }
+  if (!args.quiet) {
+    std::printf("%s via %s: source %zu points, target '%s'\n",
+                std::string(MethodName(options.method)).c_str(),
+                args.connection.options().address.c_str(), source.size(), args.target.c_str());
+  }
+  std::function<void(const IterationReport&)> on_progress;
+  if (!args.quiet) on_progress = PrintIteration;
+  auto remote = (*client)->Register(args.target, source, initial, options, truth, on_progress);
+  if (!remote.ok()) return Fail(remote.status());
+  std::printf("%s", FormatResult(remote->result, remote->ground_truth_error).c_str());
+  return WriteJson(args, options, remote->result, remote->ground_truth_error);
 }
 
 int RunRegister(const RegisterArgs& args) {
@@ -43,21 +95,12 @@ int RunRegister(const RegisterArgs& args) {
   }
   auto source = ReadPointCloud(args.source);
   if (!source.ok()) return Fail(source.status());
+  if (args.connection.has_server()) return RunRemote(args, *options, *source, initial, truth);
   auto target_cloud = ReadPointCloud(args.target);
   if (!target_cloud.ok()) return Fail(target_cloud.status());
   auto target = Target::Build(*std::move(target_cloud));
   if (!target.ok()) return Fail(target.status());
-  if (args.perturb_angle != 0.0 || args.perturb_translation != 0.0) {
-    // Same protocol as `mlsreg eval`: rotate about the source centroid as placed by --init.
-    Vec3 centroid = Vec3::Zero();
-    for (const Vec3& p : source->points) centroid += p;
-    centroid /= static_cast<double>(source->size());
-    centroid = initial.topLeftCorner<3, 3>() * centroid + initial.topRightCorner<3, 1>();
-    initial = RandomPerturbation(args.perturb_angle,
-                                 args.perturb_translation * (*target)->sampling_distance(),
-                                 centroid, args.perturb_seed) *
-              initial;
-  }
+  initial = Perturbed(args, *source, initial, (*target)->sampling_distance());
   if (!args.quiet) {
     std::printf("%s: source %zu points, target %zu points, d = %.6g, target prepared in %.3f s\n",
                 std::string(MethodName(options->method)).c_str(), source->size(),
@@ -65,12 +108,7 @@ int RunRegister(const RegisterArgs& args) {
                 (*target)->build_seconds());
   }
   RegistrationCallbacks callbacks;
-  if (!args.quiet) {
-    callbacks.on_iteration = [](const IterationReport& r) {
-      std::printf("%s\n", FormatIteration(r).c_str());
-      std::fflush(stdout);
-    };
-  }
+  if (!args.quiet) callbacks.on_iteration = PrintIteration;
   auto result = Register(**target, *source, initial, *options, callbacks);
   if (!result.ok()) return Fail(result.status());
   std::optional<PoseError> error;
@@ -78,12 +116,7 @@ int RunRegister(const RegisterArgs& args) {
     error = EvaluatePose(source->points, result->transform, *truth, result->sampling_distance);
   }
   std::printf("%s", FormatResult(*result, error).c_str());
-  if (!args.json.empty()) {
-    std::ofstream out(args.json);
-    out << ResultJson(MethodName(options->method), *result, error).dump(2) << "\n";
-    if (!out) return Fail(absl::UnavailableError("cannot write --json file '" + args.json + "'"));
-  }
-  return 0;
+  return WriteJson(args, *options, *result, error);
 }
 
 }  // namespace
@@ -92,7 +125,9 @@ CommandRunner AddRegisterCommand(CLI::App& app) {
   auto args = std::make_shared<RegisterArgs>();
   CLI::App* cmd = app.add_subcommand("register", "register a source scan to a target scan");
   cmd->add_option("--source", args->source, "source cloud (PLY, PCD, XYZ/CSV)")->required();
-  cmd->add_option("--target", args->target, "target cloud (PLY, PCD, XYZ/CSV)")->required();
+  cmd->add_option("--target", args->target,
+                  "target cloud (PLY, PCD, XYZ/CSV), or with --server the id of a cached target")
+      ->required();
   cmd->add_option("--init", args->init,
                   "initial source->target transform: 16 row-major numbers or a file");
   cmd->add_option("--gt", args->gt, "ground-truth transform, to report the error against");
@@ -104,6 +139,7 @@ CommandRunner AddRegisterCommand(CLI::App& app) {
                   "and translate it by this many d in a seeded random direction");
   cmd->add_option("--perturb-seed", args->perturb_seed, "perturbation seed");
   args->flags.AddTo(*cmd);
+  args->connection.AddTo(*cmd, /*server_required=*/false);
   return [args] { return RunRegister(*args); };
 }
 

@@ -1,5 +1,9 @@
 #include "cli/report.h"
 
+#include <unistd.h>
+
+#include <cstdio>
+
 #include "absl/strings/str_format.h"
 
 namespace mlsreg::cli {
@@ -39,6 +43,21 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
         error->translation_d);
   }
   return out;
+}
+
+ProgressPrinter::ProgressPrinter() : terminal_(isatty(fileno(stderr))) {}
+
+void ProgressPrinter::Update(std::size_t done, std::size_t total, const std::string& line) {
+  if (terminal_) {
+    const int width = 30;
+    const int filled = static_cast<int>(width * done / std::max<std::size_t>(total, 1));
+    std::fprintf(stderr, "\r[%s%s] %zu/%zu %-60.60s", std::string(filled, '#').c_str(),
+                 std::string(width - filled, '.').c_str(), done, total, line.c_str());
+    if (done == total) std::fprintf(stderr, "\n");
+  } else {
+    std::fprintf(stderr, "[%zu/%zu] %s\n", done, total, line.c_str());
+  }
+  std::fflush(stderr);
 }
 
 nlohmann::json IterationJson(const IterationReport& r) {

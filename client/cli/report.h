@@ -18,6 +18,16 @@ std::string FormatIteration(const IterationReport& report);
 // The final summary block (termination, transform, errors against ground truth when known).
 std::string FormatResult(const RegistrationResult& result, const std::optional<PoseError>& error);
 
+// Progress of many jobs on stderr: a bar redrawn in place on a terminal, plain lines otherwise.
+class ProgressPrinter {
+ public:
+  ProgressPrinter();  // detects whether stderr is a terminal
+  void Update(std::size_t done, std::size_t total, const std::string& line);
+
+ private:
+  bool terminal_;
+};
+
 nlohmann::json IterationJson(const IterationReport& report);
 nlohmann::json ResultJson(std::string_view method, const RegistrationResult& result,
                           const std::optional<PoseError>& error);

@@ -1,0 +1,241 @@
+// `mlsreg batch`: runs every job of a manifest against a server with bounded concurrency.
+// Each distinct target file is uploaded once (id derived from its name and path); results go to
+// a CSV or JSONL file (by extension) one row per job; --resume skips jobs already done there.
+#include <atomic>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <thread>
+
+#include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
+#include "cli/commands.h"
+#include "cli/connection_flags.h"
+#include "cli/registration_flags.h"
+#include "cli/report.h"
+#include "mlsreg/io.h"
+#include "mlsreg/manifest.h"
+
+namespace mlsreg::cli {
+namespace {
+
+struct BatchArgs {
+  std::string manifest, results = "results.csv";
+  int concurrency = 4;
+  bool resume = false;
+  RegistrationFlags flags;
+  ConnectionFlags connection;
+};
+
+// A readable, collision-free id for a target file: "<stem>-<8 hex digits of the path's hash>".
+std::string TargetIdFor(const std::string& path) {
+  const std::string absolute = std::filesystem::absolute(path).lexically_normal().string();
+  std::uint32_t hash = 2166136261u;  // FNV-1a
+  for (unsigned char c : absolute) hash = (hash ^ c) * 16777619u;
+  std::string stem;
+  for (char c : std::filesystem::path(path).stem().string()) {
+    stem +=
+        (std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '_' || c == '-') ? c : '_';
+  }
+  return absl::StrFormat("%s-%08x", stem.substr(0, 100), hash);
+}
+
+struct JobOutcome {
+  std::string id, target_id, error, request_id, termination;
+  Matrix4 transform = Matrix4::Identity();
+  std::optional<PoseError> pose_error;
+  int iterations = 0, attempts = 0;
+  double seconds = 0.0;
+};
+
+bool IsJsonl(const std::string& path) {
+  return std::filesystem::path(path).extension() == ".jsonl";
+}
+
+std::string CsvRow(const JobOutcome& o) {
+  std::vector<std::string> f = {o.id,
+                                o.error.empty() ? "ok" : o.error,
+                                o.target_id,
+                                o.pose_error ? absl::StrFormat("%.6g", o.pose_error->rmse_d) : "",
+                                o.pose_error ? (o.pose_error->success ? "1" : "0") : "",
+                                absl::StrFormat("%d", o.iterations),
+                                o.termination,
+                                o.error.empty() ? FormatTransform(o.transform) : "",
+                                absl::StrFormat("%.4f", o.seconds),
+                                absl::StrFormat("%d", o.attempts),
+                                o.request_id};
+  for (std::string& s : f) s = CsvField(s);
+  return absl::StrJoin(f, ",");
+}
+
+std::string JsonRow(const JobOutcome& o) {
+  nlohmann::json j = {{"id", o.id},
+                      {"status", o.error.empty() ? "ok" : o.error},
+                      {"target_id", o.target_id},
+                      {"iterations", o.iterations},
+                      {"termination", o.termination},
+                      {"seconds", o.seconds},
+                      {"attempts", o.attempts},
+                      {"request_id", o.request_id}};
+  if (o.error.empty()) {
+    std::vector<double> t;
+    for (int r = 0; r < 4; ++r) {
+      for (int c = 0; c < 4; ++c) t.push_back(o.transform(r, c));
+    }
+    j["transform"] = t;
+  }
+  if (o.pose_error) {
+    j["rmse_d"] = o.pose_error->rmse_d;
+    j["success"] = o.pose_error->success;
+  }
+  return j.dump();
+}
+
+// Ids of jobs already completed successfully in an existing results file.
+std::set<std::string> CompletedJobs(const std::string& path) {
+  std::set<std::string> done;
+  std::ifstream in(path);
+  std::string line;
+  bool header = !IsJsonl(path);
+  while (std::getline(in, line)) {
+    if (header) {
+      header = false;
+      continue;
+    }
+    if (IsJsonl(path)) {
+      auto j = nlohmann::json::parse(line, nullptr, /*allow_exceptions=*/false);
+      if (j.is_object() && j.value("status", "") == "ok") done.insert(j.value("id", ""));
+    } else {
+      auto fields = SplitCsvLine(line);
+      if (fields.ok() && fields->size() > 1 && (*fields)[1] == "ok") done.insert((*fields)[0]);
+    }
+  }
+  return done;
+}
+
+int RunBatch(const BatchArgs& args) {
+  auto options = args.flags.ToOptions();
+  if (!options.ok()) {
+    std::fprintf(stderr, "mlsreg batch: %s\n", std::string(options.status().message()).c_str());
+    return 2;
+  }
+  auto manifest = ReadManifest(args.manifest);
+  if (!manifest.ok()) {
+    std::fprintf(stderr, "mlsreg batch: %s\n", std::string(manifest.status().message()).c_str());
+    return 2;
+  }
+  auto client = args.connection.Connect();
+  if (!client.ok()) {
+    std::fprintf(stderr, "mlsreg batch: %s\n", std::string(client.status().message()).c_str());
+    return 2;
+  }
+  const std::set<std::string> already =
+      args.resume ? CompletedJobs(args.results) : std::set<std::string>{};
+  std::vector<const RegistrationProblem*> jobs;
+  for (const RegistrationProblem& p : manifest->problems) {
+    if (!already.count(p.id)) jobs.push_back(&p);
+  }
+  std::fprintf(stderr, "mlsreg batch: %zu jobs (%zu already done), concurrency %d\n", jobs.size(),
+               already.size(), args.concurrency);
+
+  // Upload each distinct target once; a target that is already there is reused.
+  std::map<std::string, std::string> target_ids;  // path -> id
+  std::map<std::string, std::string> upload_errors;
+  for (const RegistrationProblem* p : jobs) {
+    if (target_ids.count(p->target_path)) continue;
+    const std::string id = TargetIdFor(p->target_path);
+    target_ids[p->target_path] = id;
+    if ((*client)->GetTarget(id).ok()) continue;
+    auto cloud = ReadPointCloud(p->target_path);
+    absl::Status status = cloud.status();
+    if (cloud.ok()) {
+      auto uploaded = (*client)->UploadTarget(id, *cloud);
+      status = uploaded.status();
+      if (status.code() == absl::StatusCode::kAlreadyExists) status = absl::OkStatus();
+    }
+    if (!status.ok()) upload_errors[p->target_path] = std::string(status.message());
+    std::fprintf(stderr, "target %s: %s\n", id.c_str(),
+                 status.ok() ? "ready" : std::string(status.message()).c_str());
+  }
+
+  const bool append = args.resume && std::filesystem::exists(args.results);
+  std::ofstream out(args.results, append ? std::ios::app : std::ios::trunc);
+  if (!out) {
+    std::fprintf(stderr, "mlsreg batch: cannot write '%s'\n", args.results.c_str());
+    return 2;
+  }
+  if (!append && !IsJsonl(args.results)) {
+    out << "id,status,target_id,rmse_d,success,iterations,termination,transform,seconds,"
+           "attempts,request_id\n";
+  }
+  std::mutex mutex;
+  std::atomic<std::size_t> next{0};
+  std::size_t done = 0, failed = 0;
+  ProgressPrinter progress;
+  auto worker = [&] {
+    for (std::size_t i = next++; i < jobs.size(); i = next++) {
+      const RegistrationProblem& p = *jobs[i];
+      JobOutcome o;
+      o.id = p.id;
+      o.target_id = target_ids[p.target_path];
+      const auto start = std::chrono::steady_clock::now();
+      if (upload_errors.count(p.target_path)) {
+        o.error = "target upload failed: " + upload_errors[p.target_path];
+      } else if (auto source = ReadPointCloud(p.source_path); !source.ok()) {
+        o.error = std::string(source.status().message());
+      } else {
+        auto r = (*client)->Register(o.target_id, *source, p.initial.value_or(Matrix4::Identity()),
+                                     *options, p.ground_truth);
+        if (!r.ok()) {
+          o.error = absl::StrFormat("%s: %s", absl::StatusCodeToString(r.status().code()),
+                                    std::string(r.status().message()));
+        } else {
+          o.transform = r->result.transform;
+          o.iterations = r->result.iterations;
+          o.termination = std::string(TerminationName(r->result.termination));
+          o.pose_error = r->ground_truth_error;
+          o.attempts = r->attempts;
+          o.request_id = r->request_id;
+        }
+      }
+      o.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      std::lock_guard<std::mutex> lock(mutex);
+      out << (IsJsonl(args.results) ? JsonRow(o) : CsvRow(o)) << "\n";
+      out.flush();
+      ++done;
+      failed += !o.error.empty();
+      progress.Update(done, jobs.size(),
+                      o.error.empty() ? absl::StrFormat("%s ok (%d iterations)", o.id, o.iterations)
+                                      : absl::StrFormat("%s FAILED: %s", o.id, o.error));
+    }
+  };
+  std::vector<std::thread> threads;
+  for (int t = 0; t < std::max(1, args.concurrency); ++t) threads.emplace_back(worker);
+  for (std::thread& t : threads) t.join();
+  std::fprintf(stderr, "mlsreg batch: %zu done, %zu failed; results in %s\n", done - failed, failed,
+               args.results.c_str());
+  return failed == 0 ? 0 : 1;
+}
+
+}  // namespace
+
+CommandRunner AddBatchCommand(CLI::App& app) {
+  auto args = std::make_shared<BatchArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "batch", "register every job of a manifest (id,source,target[,gt][,init]) on a server");
+  cmd->add_option("--manifest", args->manifest, "jobs CSV; paths relative to it")->required();
+  cmd->add_option("--results", args->results, "results file: .csv or .jsonl")
+      ->capture_default_str();
+  cmd->add_option("--concurrency", args->concurrency, "registrations in flight")
+      ->capture_default_str();
+  cmd->add_flag("--resume", args->resume, "skip jobs already done in the results file, append");
+  args->flags.AddTo(*cmd);
+  args->connection.AddTo(*cmd, /*server_required=*/true);
+  return [args] { return RunBatch(*args); };
+}
+
+}  // namespace mlsreg::cli

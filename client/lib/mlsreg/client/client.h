@@ -1,0 +1,90 @@
+// mlsreg::client::Client: the C++ API of a remote mlsreg server, in domain types. It hides
+// chunking, applies default deadlines, retries transient failures (UNAVAILABLE,
+// RESOURCE_EXHAUSTED) with exponential backoff and jitter, and reuses one channel.
+#pragma once
+
+#include <atomic>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "mlsreg/metrics.h"
+#include "mlsreg/registration.h"
+
+namespace mlsreg::client {
+
+struct ClientOptions {
+  std::string address = "127.0.0.1:50051";  // host:port, or any gRPC target (dns:///...)
+  // TLS: set `tls` (server verified against `ca_cert`, or the system roots when empty); mutual
+  // TLS when client_cert and client_key are given. All are PEM file paths.
+  bool tls = false;
+  std::string ca_cert, client_cert, client_key;
+  std::string token;                // sent as "authorization: Bearer <token>" when not empty
+  double deadline_seconds = 600.0;  // per call
+  int max_attempts = 5;             // per call, for transient failures
+  double initial_backoff_seconds = 0.2;
+  double max_backoff_seconds = 5.0;
+  std::size_t chunk_bytes = 1 << 20;  // upload chunk size (the server accepts <= 4 MiB)
+  bool float32 = false;               // send coordinates as float32 (half the bytes, rounded)
+};
+
+struct TargetInfo {
+  std::string id;
+  std::string state;  // "ready", "stored"
+  std::uint64_t points = 0;
+  std::uint64_t memory_bytes = 0;
+  double sampling_distance = 0.0;
+  double build_seconds = 0.0;
+  std::uint64_t registrations = 0;
+};
+
+struct RemoteRegistrationResult {
+  std::string request_id;
+  RegistrationResult result;  // trace holds the progress messages received
+  std::optional<PoseError> ground_truth_error;
+  double queue_seconds = 0.0;
+  int attempts = 1;
+};
+
+struct ServerHealth {
+  bool serving = false;
+  std::string status;  // SERVING, NOT_SERVING, ...
+};
+
+class Client {
+ public:
+  static absl::StatusOr<std::unique_ptr<Client>> Connect(const ClientOptions& options);
+  ~Client();
+
+  absl::StatusOr<TargetInfo> UploadTarget(const std::string& id, const PointCloud& cloud);
+  absl::StatusOr<TargetInfo> GetTarget(const std::string& id);
+  absl::StatusOr<std::vector<TargetInfo>> ListTargets();  // all pages
+  absl::Status DeleteTarget(const std::string& id);
+
+  // Streams a registration; `on_progress` (may be empty) sees every progress message. Set
+  // `*cancel` (may be null) to true from another thread to cancel the call.
+  absl::StatusOr<RemoteRegistrationResult> Register(
+      const std::string& target_id, const PointCloud& source, const Matrix4& initial,
+      const RegistrationOptions& options, const std::optional<Matrix4>& ground_truth = {},
+      const std::function<void(const IterationReport&)>& on_progress = {},
+      const std::atomic<bool>* cancel = nullptr);
+
+  // The overall health of the server ("" service), via grpc.health.v1.
+  absl::StatusOr<ServerHealth> Health();
+  // The server's statistics as JSON text (the GetStats response).
+  absl::StatusOr<std::string> StatsJson();
+
+  const ClientOptions& options() const { return options_; }
+
+ private:
+  struct Impl;
+  explicit Client(const ClientOptions& options, std::unique_ptr<Impl> impl);
+  ClientOptions options_;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace mlsreg::client
