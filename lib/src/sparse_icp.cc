@@ -89,7 +89,34 @@ RigidTransform SparseIcpSolver::Step(std::span<Vec3> x, std::span<const Vec3> q,
   return increment;
 }
 
-RigidTransform SparseIcpSolver::StepPointToPlane(std::span<const std::uint8_t> active) {
+namespace {
+
+// The two Sparse ICP metrics differ only in the residual (scalar distance to the tangent plane,
+// or 3-vector to the point) and in the rigid step that fits the shifted targets.
+struct PointToPlaneMetric {
+  using Residual = double;
+  static double Of(const Vec3& x, const Vec3& q, const Vec3& n) { return n.dot(x - q); }
+  static double Norm(double r) { return std::abs(r); }
+};
+
+struct PointToPointMetric {
+  using Residual = Vec3;
+  static Vec3 Of(const Vec3& x, const Vec3& q, const Vec3&) { return x - q; }
+  static double Norm(const Vec3& r) { return r.norm(); }
+};
+
+}  // namespace
+
+// One ICP iteration of ADMM (reference: OpenGP sparseicp ICP.h, SICP::point_to_*):
+//   z = prox_{|.|^p / mu}(r(x) + c / mu)      (shrinkage)
+//   (R, t) = argmin sum |r(R x + t) - (z - c / mu)|^2
+//   c += mu (r(x) - z);  mu *= alpha
+template <typename Metric, typename RigidStep>
+RigidTransform SparseIcpSolver::RunAdmm(std::span<const std::uint8_t> active,
+                                        std::vector<typename Metric::Residual>& multiplier,
+                                        std::vector<typename Metric::Residual>& z,
+                                        std::vector<typename Metric::Residual>& shifted,
+                                        RigidStep rigid_step) {
   const std::size_t m = xs_.size();
   RigidTransform total = RigidTransform::Identity();
   double mu = options_.mu;
@@ -98,16 +125,15 @@ RigidTransform SparseIcpSolver::StepPointToPlane(std::span<const std::uint8_t> a
     ++last_outer_;
     double dual = 0.0;
     for (int inner = 0; inner < options_.max_inner; ++inner) {
-      // z-step: z = prox_{|.|^p / mu}(n.(x - q) + c / mu); then the target of the rigid step.
       for (std::size_t i = 0; i < m; ++i) {
         if (!active[i]) continue;
-        const double h = ns_[i].dot(xs_[i] - qs_[i]) + multiplier1_[i] / mu;
-        z1_[i] = LpShrinkWeight(std::abs(h), mu, options_.p) * h;
-        u1_[i] = z1_[i] - multiplier1_[i] / mu;
+        // Concrete type, not auto: an Eigen expression would outlive its temporaries.
+        const typename Metric::Residual h = Metric::Of(xs_[i], qs_[i], ns_[i]) + multiplier[i] / mu;
+        z[i] = LpShrinkWeight(Metric::Norm(h), mu, options_.p) * h;
+        shifted[i] = z[i] - multiplier[i] / mu;
       }
-      // (R, t)-step.
       std::copy(xs_.begin(), xs_.end(), previous_.begin());
-      const RigidTransform step = PointToPlaneMotion(xs_, qs_, ns_, u1_, weight_);
+      const RigidTransform step = rigid_step();
       dual = 0.0;
       for (std::size_t i = 0; i < m; ++i) {
         xs_[i] = step * xs_[i];
@@ -116,13 +142,12 @@ RigidTransform SparseIcpSolver::StepPointToPlane(std::span<const std::uint8_t> a
       total = step * total;
       if (dual < options_.stop) break;
     }
-    // Multiplier step.
     double primal = 0.0;
     for (std::size_t i = 0; i < m; ++i) {
       if (!active[i]) continue;
-      const double residual = ns_[i].dot(xs_[i] - qs_[i]) - z1_[i];
-      if (!options_.use_penalty) multiplier1_[i] += mu * residual;
-      primal = std::max(primal, std::abs(residual));
+      const typename Metric::Residual residual = Metric::Of(xs_[i], qs_[i], ns_[i]) - z[i];
+      if (!options_.use_penalty) multiplier[i] += mu * residual;
+      primal = std::max(primal, Metric::Norm(residual));
     }
     if (mu < options_.max_mu) mu *= options_.alpha;
     if (primal < options_.stop && dual < options_.stop) break;
@@ -130,42 +155,21 @@ RigidTransform SparseIcpSolver::StepPointToPlane(std::span<const std::uint8_t> a
   return total;
 }
 
+RigidTransform SparseIcpSolver::StepPointToPlane(std::span<const std::uint8_t> active) {
+  // Fit n . (R x + t - q) = z - c / mu.
+  return RunAdmm<PointToPlaneMetric>(active, multiplier1_, z1_, u1_, [&] {
+    return PointToPlaneMotion(xs_, qs_, ns_, u1_, weight_);
+  });
+}
+
 RigidTransform SparseIcpSolver::StepPointToPoint(std::span<const std::uint8_t> active) {
-  const std::size_t m = xs_.size();
-  RigidTransform total = RigidTransform::Identity();
-  double mu = options_.mu;
-  last_outer_ = 0;
-  for (int outer = 0; outer < options_.max_outer; ++outer) {
-    ++last_outer_;
-    double dual = 0.0;
-    for (int inner = 0; inner < options_.max_inner; ++inner) {
-      for (std::size_t i = 0; i < m; ++i) {
-        if (!active[i]) continue;
-        const Vec3 h = xs_[i] - qs_[i] + multiplier3_[i] / mu;
-        z3_[i] = LpShrinkWeight(h.norm(), mu, options_.p) * h;
-        target3_[i] = qs_[i] + z3_[i] - multiplier3_[i] / mu;
-      }
-      std::copy(xs_.begin(), xs_.end(), previous_.begin());
-      const RigidTransform step = PointToPointMotion(xs_, target3_, weight_);
-      dual = 0.0;
-      for (std::size_t i = 0; i < m; ++i) {
-        xs_[i] = step * xs_[i];
-        if (active[i]) dual = std::max(dual, (xs_[i] - previous_[i]).norm());
-      }
-      total = step * total;
-      if (dual < options_.stop) break;
-    }
-    double primal = 0.0;
-    for (std::size_t i = 0; i < m; ++i) {
-      if (!active[i]) continue;
-      const Vec3 residual = xs_[i] - qs_[i] - z3_[i];
-      if (!options_.use_penalty) multiplier3_[i] += mu * residual;
-      primal = std::max(primal, residual.norm());
-    }
-    if (mu < options_.max_mu) mu *= options_.alpha;
-    if (primal < options_.stop && dual < options_.stop) break;
-  }
-  return total;
+  // Fit R x + t = q + z - c / mu.
+  return RunAdmm<PointToPointMetric>(active, multiplier3_, z3_, target3_, [&] {
+    for (std::size_t i = 0; i < xs_.size(); ++i) target3_[i] += qs_[i];
+    const RigidTransform step = PointToPointMotion(xs_, target3_, weight_);
+    for (std::size_t i = 0; i < xs_.size(); ++i) target3_[i] -= qs_[i];
+    return step;
+  });
 }
 
 }  // namespace mlsreg

@@ -60,6 +60,11 @@ class SparseIcpSolver {
  private:
   RigidTransform StepPointToPlane(std::span<const std::uint8_t> active);
   RigidTransform StepPointToPoint(std::span<const std::uint8_t> active);
+  template <typename Metric, typename RigidStep>
+  RigidTransform RunAdmm(std::span<const std::uint8_t> active,
+                         std::vector<typename Metric::Residual>& multiplier,
+                         std::vector<typename Metric::Residual>& z,
+                         std::vector<typename Metric::Residual>& shifted, RigidStep rigid_step);
 
   SparseIcpOptions options_;
   int last_outer_ = 0;
