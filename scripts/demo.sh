@@ -1,12 +1,21 @@
 #!/usr/bin/env bash
-# The main job: register the bundled Stanford bunny scans (bun000 -> bun045) with MLS-SICP from
-# a start pose 10 degrees and 10 d away from the ground truth, streaming one line per iteration,
-# then print the final transform and its error against the ground truth.
+# The main job: a registration round trip through a locally started server. Starts
+# `mlsreg serve` on a free loopback port, uploads the bundled Stanford bunny scan bun045 as a
+# target, streams an MLS-SICP registration of bun000 against it (started 10 degrees and 10 d
+# from the ground truth; one line per ICP iteration), prints the final transform and its error
+# against the ground truth, then stops the server.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MLSREG=${MLSREG:-build/mlsreg}
+source scripts/lib-server.sh
+log=$(mktemp)
+trap 'kill "${MLSREG_SERVER_PID:-}" 2>/dev/null || true; rm -f "$log"' EXIT
+start_server "$log"
+echo "== server listening on $MLSREG_SERVER_ADDRESS"
+"$MLSREG" targets upload --server "$MLSREG_SERVER_ADDRESS" --id bunny-bun045 data/bunny/bun045.ply
 GT=$(awk -F, '$1 == "bun000_bun045" { print $4 }' data/bunny/pairs.csv)
-exec "$MLSREG" register \
-  --source data/bunny/bun000.ply --target data/bunny/bun045.ply \
-  --method "${METHOD:-mls-sicp}" --init "$GT" --gt "$GT" \
+"$MLSREG" register --server "$MLSREG_SERVER_ADDRESS" --target bunny-bun045 \
+  --source data/bunny/bun000.ply --method "${METHOD:-mls-sicp}" --init "$GT" --gt "$GT" \
   --perturb-angle 10 --perturb-translation 10 --perturb-seed 1 "$@"
+stop_server
+echo "== server stopped"

@@ -149,16 +149,18 @@ int RunBatch(const BatchArgs& args) {
     if (target_ids.count(p->target_path)) continue;
     const std::string id = TargetIdFor(p->target_path);
     target_ids[p->target_path] = id;
-    if ((*client)->GetTarget(id).ok()) continue;
+    // Always upload (ALREADY_EXISTS is fine): the client then holds the cloud and can upload it
+    // again if the target's replica loses it or dies and the target moves to another replica.
     auto cloud = ReadPointCloud(p->target_path);
     absl::Status status = cloud.status();
     if (cloud.ok()) {
-      auto uploaded = (*client)->UploadTarget(id, *cloud);
+      auto uploaded =
+          (*client)->UploadTarget(id, std::make_shared<const PointCloud>(*std::move(cloud)));
       status = uploaded.status();
       if (status.code() == absl::StatusCode::kAlreadyExists) status = absl::OkStatus();
     }
     if (!status.ok()) upload_errors[p->target_path] = std::string(status.message());
-    std::fprintf(stderr, "target %s: %s\n", id.c_str(),
+    std::fprintf(stderr, "target %s on %s: %s\n", id.c_str(), (*client)->ReplicaFor(id).c_str(),
                  status.ok() ? "ready" : std::string(status.message()).c_str());
   }
 

@@ -6,7 +6,8 @@ namespace mlsreg::cli {
 
 void ConnectionFlags::AddTo(CLI::App& app, bool server_required) {
   CLI::Option* server = app.add_option("--server", options_.address,
-                                       "server address HOST:PORT (or dns:///NAME:PORT)");
+                                       "server HOST:PORT; several comma-separated (replicas: "
+                                       "targets are spread by id); or dns:///NAME:PORT");
   if (server_required) server->required();
   app.add_option("--token", options_.token,
                  "bearer token (default: the MLSREG_TOKEN environment variable)");

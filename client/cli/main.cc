@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
   };
   add(&mlsreg::cli::AddRegisterCommand);
   add(&mlsreg::cli::AddEvalCommand);
+  add(&mlsreg::cli::AddServeCommand);
   add(&mlsreg::cli::AddTargetsCommand);
   add(&mlsreg::cli::AddBatchCommand);
   add(&mlsreg::cli::AddHealthCommand);

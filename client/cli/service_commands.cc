@@ -76,30 +76,44 @@ CommandRunner AddTargetsCommand(CLI::App& app) {
 }
 
 CommandRunner AddHealthCommand(CLI::App& app) {
-  CLI::App* cmd = app.add_subcommand("health", "ask a server whether it is serving (exit 0 if so)");
+  CLI::App* cmd =
+      app.add_subcommand("health", "ask servers whether they are serving (exit 0 if every one is)");
   auto connection = std::make_shared<ConnectionFlags>();
   connection->AddTo(*cmd, true);
   return [connection]() -> int {
-    client::ClientOptions options = connection->options();
     auto client = connection->Connect();
     if (!client.ok()) return Fail("health", client.status());
-    auto health = (*client)->Health();
-    if (!health.ok()) return Fail("health", health.status());
-    std::printf("%s\n", health->status.c_str());
-    return health->serving ? 0 : 1;
+    const std::vector<std::string> replicas = (*client)->replicas();
+    bool all_serving = true;
+    for (std::size_t i = 0; i < replicas.size(); ++i) {
+      auto health = (*client)->Health(i);
+      if (!health.ok()) {
+        Fail("health", health.status());
+        all_serving = false;
+        continue;
+      }
+      if (replicas.size() > 1) std::printf("%s ", replicas[i].c_str());
+      std::printf("%s\n", health->status.c_str());
+      all_serving = all_serving && health->serving;
+    }
+    return all_serving ? 0 : 1;
   };
 }
 
 CommandRunner AddStatsCommand(CLI::App& app) {
-  CLI::App* cmd = app.add_subcommand("stats", "print a server's counters and latencies (JSON)");
+  CLI::App* cmd = app.add_subcommand("stats", "print servers' counters and latencies (JSON)");
   auto connection = std::make_shared<ConnectionFlags>();
   connection->AddTo(*cmd, true);
   return [connection]() -> int {
     auto client = connection->Connect();
     if (!client.ok()) return Fail("stats", client.status());
-    auto json = (*client)->StatsJson();
-    if (!json.ok()) return Fail("stats", json.status());
-    std::printf("%s\n", json->c_str());
+    const std::vector<std::string> replicas = (*client)->replicas();
+    for (std::size_t i = 0; i < replicas.size(); ++i) {
+      auto json = (*client)->StatsJson(i);
+      if (!json.ok()) return Fail("stats", json.status());
+      if (replicas.size() > 1) std::printf("== %s\n", replicas[i].c_str());
+      std::printf("%s\n", json->c_str());
+    }
     return 0;
   };
 }

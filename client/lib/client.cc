@@ -2,14 +2,19 @@
 
 #include <google/protobuf/util/json_util.h>
 #include <grpcpp/grpcpp.h>
+#include <netdb.h>
+#include <sys/socket.h>
 
+#include <algorithm>
 #include <chrono>
 #include <fstream>
+#include <map>
 #include <random>
 #include <sstream>
 #include <thread>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "mlsreg/v1/mlsreg.grpc.pb.h"
 #include "mlsreg/wire/convert.h"
@@ -17,16 +22,20 @@
 namespace mlsreg::client {
 namespace {
 
+using SteadyClock = std::chrono::steady_clock;
+
+// Metadata naming the target of a call, for proxies that route by it.
+constexpr char kTargetHeader[] = "x-mlsreg-target";
+
+// How long a replica that answered UNAVAILABLE is skipped when choosing where to send a call.
+constexpr std::chrono::seconds kDownTime{2};
+
 absl::StatusOr<std::string> ReadFile(const std::string& path, const char* what) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return absl::NotFoundError(absl::StrCat("cannot read ", what, " '", path, "'"));
   std::stringstream buffer;
   buffer << in.rdbuf();
   return buffer.str();
-}
-
-bool IsTransient(absl::StatusCode code) {
-  return code == absl::StatusCode::kUnavailable || code == absl::StatusCode::kResourceExhausted;
 }
 
 TargetInfo FromProto(const v1::Target& t) {
@@ -43,16 +52,156 @@ TargetInfo FromProto(const v1::Target& t) {
   return info;
 }
 
+// 64-bit FNV-1a followed by the splitmix64 finaliser: stable across platforms and runs.
+std::uint64_t Hash64(std::string_view text) {
+  std::uint64_t h = 1469598103934665603ull;
+  for (unsigned char c : text) h = (h ^ c) * 1099511628211ull;
+  h ^= h >> 30;
+  h *= 0xbf58476d1ce4e5b9ull;
+  h ^= h >> 27;
+  h *= 0x94d049bb133111ebull;
+  return h ^ (h >> 31);
+}
+
+// "dns:///name:port" -> every address behind the name, as "ip:port".
+absl::StatusOr<std::vector<std::string>> ResolveDns(const std::string& target) {
+  const std::string rest = target.substr(std::string("dns:///").size());
+  const std::size_t colon = rest.rfind(':');
+  if (colon == std::string::npos) {
+    return absl::InvalidArgumentError("server address '" + target + "' lacks a port");
+  }
+  const std::string host = rest.substr(0, colon), port = rest.substr(colon + 1);
+  addrinfo hints{};
+  hints.ai_family = AF_UNSPEC;
+  hints.ai_socktype = SOCK_STREAM;
+  addrinfo* found = nullptr;
+  if (int rc = getaddrinfo(host.c_str(), port.c_str(), &hints, &found); rc != 0) {
+    return absl::UnavailableError(absl::StrCat("cannot resolve '", host, "': ", gai_strerror(rc)));
+  }
+  std::vector<std::string> addresses;
+  for (addrinfo* a = found; a; a = a->ai_next) {
+    char ip[NI_MAXHOST];
+    if (getnameinfo(a->ai_addr, a->ai_addrlen, ip, sizeof ip, nullptr, 0, NI_NUMERICHOST) != 0) {
+      continue;
+    }
+    const std::string address =
+        a->ai_family == AF_INET6 ? absl::StrCat("[", ip, "]:", port) : absl::StrCat(ip, ":", port);
+    if (std::find(addresses.begin(), addresses.end(), address) == addresses.end()) {
+      addresses.push_back(address);
+    }
+  }
+  freeaddrinfo(found);
+  if (addresses.empty()) return absl::UnavailableError("'" + host + "' has no address");
+  return addresses;
+}
+
 }  // namespace
 
-struct Client::Impl {
+// One server: its channel and stubs, and until when it is considered down.
+struct Replica {
+  std::string address;
   std::shared_ptr<grpc::Channel> channel;
   std::unique_ptr<v1::TargetService::Stub> targets;
   std::unique_ptr<v1::RegistrationService::Stub> registration;
   std::unique_ptr<v1::StatsService::Stub> stats;
   std::unique_ptr<grpc::health::v1::Health::Stub> health;
+  std::atomic<SteadyClock::rep> down_until{0};
+
+  bool down() const { return SteadyClock::now().time_since_epoch().count() < down_until.load(); }
+  void MarkDown() { down_until = (SteadyClock::now() + kDownTime).time_since_epoch().count(); }
+};
+
+struct Client::Impl {
+  ClientOptions options;
+  std::vector<std::unique_ptr<Replica>> replicas;
+  std::mutex mutex;  // guards jitter and uploaded
   std::mt19937_64 jitter{std::random_device{}()};
-  std::mutex jitter_mutex;
+  std::map<std::string, std::shared_ptr<const PointCloud>> uploaded;
+
+  // Rendezvous (highest random weight) order of the replicas for a target id: adding or
+  // removing a replica only moves the targets whose first choice it is.
+  std::vector<Replica*> Order(const std::string& target_id) const {
+    std::vector<std::pair<std::uint64_t, Replica*>> scored;
+    for (const auto& r : replicas) {
+      scored.emplace_back(Hash64(target_id + '\n' + r->address), r.get());
+    }
+    std::sort(scored.begin(), scored.end(),
+              [](const auto& a, const auto& b) { return a.first > b.first; });
+    std::vector<Replica*> order;
+    for (const auto& [score, r] : scored) order.push_back(r);
+    return order;
+  }
+
+  // The first replica of the target's order that is not marked down (the first if all are).
+  Replica& Choose(const std::string& target_id) const {
+    const std::vector<Replica*> order = Order(target_id);
+    for (Replica* r : order) {
+      if (!r->down()) return *r;
+    }
+    return *order.front();
+  }
+
+  void PrepareContext(grpc::ClientContext& context) const {
+    context.set_deadline(
+        std::chrono::system_clock::now() +
+        std::chrono::milliseconds(static_cast<long>(options.deadline_seconds * 1000.0)));
+    if (!options.token.empty()) context.AddMetadata("authorization", "Bearer " + options.token);
+  }
+
+  void Backoff(double& backoff) {
+    double sleep_seconds;
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      sleep_seconds = std::uniform_real_distribution<double>(0.0, backoff)(jitter);
+    }
+    std::this_thread::sleep_for(std::chrono::duration<double>(sleep_seconds));
+    backoff = std::min(backoff * 2.0, options.max_backoff_seconds);
+  }
+
+  // Runs `attempt(replica, context)` against `pick()` until it succeeds, fails permanently or
+  // runs out of attempts. UNAVAILABLE marks the replica down (the next pick may differ);
+  // UNAVAILABLE and RESOURCE_EXHAUSTED back off exponentially with full jitter.
+  // `on_not_found` (may be empty) may repair a NOT_FOUND once (e.g. by uploading the target)
+  // and return true to retry at once.
+  template <typename Result, typename Pick, typename Attempt>
+  absl::StatusOr<Result> Call(const std::string& target_id, Pick pick, Attempt attempt,
+                              int* attempts_out = nullptr,
+                              const std::function<bool(Replica&)>& on_not_found = {}) {
+    double backoff = options.initial_backoff_seconds;
+    bool repaired = false;
+    absl::StatusOr<Result> result = absl::UnknownError("no attempt made");
+    const int max_attempts = std::max(1, options.max_attempts);
+    for (int n = 1; n <= max_attempts; ++n) {
+      Replica& replica = pick();
+      grpc::ClientContext context;
+      PrepareContext(context);
+      // Lets an L7 proxy (Envoy ring hash) route by target too; see docs/operations.md.
+      if (!target_id.empty()) context.AddMetadata(kTargetHeader, target_id);
+      result = attempt(replica, context);
+      if (attempts_out) *attempts_out = n;
+      if (result.ok()) return result;
+      const absl::StatusCode code = result.status().code();
+      if (code == absl::StatusCode::kNotFound && on_not_found && !repaired) {
+        repaired = true;
+        if (on_not_found(replica)) continue;
+        return result;
+      }
+      if (code != absl::StatusCode::kUnavailable && code != absl::StatusCode::kResourceExhausted) {
+        return result;
+      }
+      if (n == max_attempts) break;
+      if (code == absl::StatusCode::kUnavailable) {
+        replica.MarkDown();
+        // Another replica can take the call at once; back off only when none is left.
+        if (&pick() != &replica) continue;
+      }
+      Backoff(backoff);
+    }
+    return result;
+  }
+
+  absl::StatusOr<TargetInfo> UploadTo(Replica& replica, grpc::ClientContext& context,
+                                      const std::string& id, const PointCloud& cloud);
 };
 
 Client::Client(const ClientOptions& options, std::unique_ptr<Impl> impl)
@@ -64,6 +213,18 @@ absl::StatusOr<std::unique_ptr<Client>> Client::Connect(const ClientOptions& opt
   if (options.chunk_bytes == 0 || options.chunk_bytes > (4u << 20)) {
     return absl::InvalidArgumentError("chunk_bytes must be in [1, 4 MiB]");
   }
+  std::vector<std::string> addresses;
+  if (options.address.rfind("dns:///", 0) == 0) {
+    auto resolved = ResolveDns(options.address);
+    if (!resolved.ok()) return resolved.status();
+    addresses = *resolved;
+  } else {
+    for (absl::string_view a : absl::StrSplit(options.address, ',', absl::SkipWhitespace())) {
+      addresses.emplace_back(a);
+    }
+  }
+  if (addresses.empty()) return absl::InvalidArgumentError("no server address given");
+
   std::shared_ptr<grpc::ChannelCredentials> credentials;
   if (options.tls) {
     grpc::SslCredentialsOptions ssl;
@@ -88,120 +249,128 @@ absl::StatusOr<std::unique_ptr<Client>> Client::Connect(const ClientOptions& opt
   args.SetMaxReceiveMessageSize(64 << 20);
   args.SetMaxSendMessageSize(64 << 20);
   auto impl = std::make_unique<Impl>();
-  impl->channel = grpc::CreateCustomChannel(options.address, credentials, args);
-  impl->targets = v1::TargetService::NewStub(impl->channel);
-  impl->registration = v1::RegistrationService::NewStub(impl->channel);
-  impl->stats = v1::StatsService::NewStub(impl->channel);
-  impl->health = grpc::health::v1::Health::NewStub(impl->channel);
+  impl->options = options;
+  for (const std::string& address : addresses) {
+    auto r = std::make_unique<Replica>();
+    r->address = address;
+    r->channel = grpc::CreateCustomChannel(address, credentials, args);
+    r->targets = v1::TargetService::NewStub(r->channel);
+    r->registration = v1::RegistrationService::NewStub(r->channel);
+    r->stats = v1::StatsService::NewStub(r->channel);
+    r->health = grpc::health::v1::Health::NewStub(r->channel);
+    impl->replicas.push_back(std::move(r));
+  }
   return std::unique_ptr<Client>(new Client(options, std::move(impl)));
 }
 
-namespace {
-
-// Runs `attempt(context)` until it succeeds, fails permanently, or runs out of attempts;
-// transient failures back off exponentially with full jitter.
-template <typename Result, typename Attempt>
-absl::StatusOr<Result> WithRetries(const ClientOptions& options, std::mt19937_64& rng,
-                                   std::mutex& rng_mutex, Attempt attempt,
-                                   int* attempts_out = nullptr) {
-  double backoff = options.initial_backoff_seconds;
-  absl::StatusOr<Result> result = absl::UnknownError("no attempt made");
-  for (int attempt_number = 1; attempt_number <= std::max(1, options.max_attempts);
-       ++attempt_number) {
-    grpc::ClientContext context;
-    context.set_deadline(
-        std::chrono::system_clock::now() +
-        std::chrono::milliseconds(static_cast<long>(options.deadline_seconds * 1000.0)));
-    if (!options.token.empty()) context.AddMetadata("authorization", "Bearer " + options.token);
-    result = attempt(context);
-    if (attempts_out) *attempts_out = attempt_number;
-    if (result.ok() || !IsTransient(result.status().code())) return result;
-    if (attempt_number == options.max_attempts) break;
-    double sleep_seconds;
-    {
-      std::lock_guard<std::mutex> lock(rng_mutex);
-      sleep_seconds = std::uniform_real_distribution<double>(0.0, backoff)(rng);
-    }
-    std::this_thread::sleep_for(std::chrono::duration<double>(sleep_seconds));
-    backoff = std::min(backoff * 2.0, options.max_backoff_seconds);
-  }
-  return result;
+std::vector<std::string> Client::replicas() const {
+  std::vector<std::string> out;
+  for (const auto& r : impl_->replicas) out.push_back(r->address);
+  return out;
 }
 
-}  // namespace
+std::string Client::ReplicaFor(const std::string& target_id) const {
+  return impl_->Order(target_id).front()->address;
+}
 
-absl::StatusOr<TargetInfo> Client::UploadTarget(const std::string& id, const PointCloud& cloud) {
+absl::StatusOr<TargetInfo> Client::Impl::UploadTo(Replica& replica, grpc::ClientContext& context,
+                                                  const std::string& id, const PointCloud& cloud) {
   v1::CreateTargetRequest header_message;
   header_message.mutable_header()->set_target_id(id);
   std::string payload;
-  wire::EncodeCloud(cloud, options_.float32 ? v1::SCALAR_TYPE_FLOAT32 : v1::SCALAR_TYPE_FLOAT64,
+  wire::EncodeCloud(cloud, options.float32 ? v1::SCALAR_TYPE_FLOAT32 : v1::SCALAR_TYPE_FLOAT64,
                     header_message.mutable_header()->mutable_cloud(), &payload);
-  return WithRetries<TargetInfo>(options_, impl_->jitter, impl_->jitter_mutex,
-                                 [&](grpc::ClientContext& context) -> absl::StatusOr<TargetInfo> {
-                                   v1::Target response;
-                                   auto writer = impl_->targets->CreateTarget(&context, &response);
-                                   bool open = writer->Write(header_message);
-                                   v1::CreateTargetRequest chunk_message;
-                                   for (std::size_t offset = 0; open && offset < payload.size();
-                                        offset += options_.chunk_bytes) {
-                                     v1::CloudChunk* chunk = chunk_message.mutable_chunk();
-                                     chunk->set_offset(offset);
-                                     chunk->set_data(payload.substr(offset, options_.chunk_bytes));
-                                     open = writer->Write(chunk_message);
-                                   }
-                                   writer->WritesDone();
-                                   const grpc::Status status = writer->Finish();
-                                   if (!status.ok()) return wire::ToAbslStatus(status);
-                                   return FromProto(response);
-                                 });
+  v1::Target response;
+  auto writer = replica.targets->CreateTarget(&context, &response);
+  bool open = writer->Write(header_message);
+  v1::CreateTargetRequest chunk_message;
+  for (std::size_t offset = 0; open && offset < payload.size(); offset += options.chunk_bytes) {
+    v1::CloudChunk* chunk = chunk_message.mutable_chunk();
+    chunk->set_offset(offset);
+    chunk->set_data(payload.substr(offset, options.chunk_bytes));
+    open = writer->Write(chunk_message);
+  }
+  writer->WritesDone();
+  const grpc::Status status = writer->Finish();
+  if (!status.ok()) return wire::ToAbslStatus(status);
+  return FromProto(response);
+}
+
+absl::StatusOr<TargetInfo> Client::UploadTarget(const std::string& id,
+                                                std::shared_ptr<const PointCloud> cloud) {
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    impl_->uploaded[id] = cloud;
+  }
+  return impl_->Call<TargetInfo>(
+      id, [&]() -> Replica& { return impl_->Choose(id); },
+      [&](Replica& replica, grpc::ClientContext& context) {
+        return impl_->UploadTo(replica, context, id, *cloud);
+      });
+}
+
+absl::StatusOr<TargetInfo> Client::UploadTarget(const std::string& id, const PointCloud& cloud) {
+  return UploadTarget(id, std::make_shared<const PointCloud>(cloud));
 }
 
 absl::StatusOr<TargetInfo> Client::GetTarget(const std::string& id) {
   v1::GetTargetRequest request;
   request.set_target_id(id);
-  return WithRetries<TargetInfo>(options_, impl_->jitter, impl_->jitter_mutex,
-                                 [&](grpc::ClientContext& context) -> absl::StatusOr<TargetInfo> {
-                                   v1::Target response;
-                                   const grpc::Status status =
-                                       impl_->targets->GetTarget(&context, request, &response);
-                                   if (!status.ok()) return wire::ToAbslStatus(status);
-                                   return FromProto(response);
-                                 });
+  return impl_->Call<TargetInfo>(
+      id, [&]() -> Replica& { return impl_->Choose(id); },
+      [&](Replica& replica, grpc::ClientContext& context) -> absl::StatusOr<TargetInfo> {
+        v1::Target response;
+        const grpc::Status status = replica.targets->GetTarget(&context, request, &response);
+        if (!status.ok()) return wire::ToAbslStatus(status);
+        return FromProto(response);
+      });
 }
 
 absl::StatusOr<std::vector<TargetInfo>> Client::ListTargets() {
   std::vector<TargetInfo> all;
-  std::string token;
-  do {
-    v1::ListTargetsRequest request;
-    request.set_page_size(1000);
-    request.set_page_token(token);
-    auto page = WithRetries<v1::ListTargetsResponse>(
-        options_, impl_->jitter, impl_->jitter_mutex,
-        [&](grpc::ClientContext& context) -> absl::StatusOr<v1::ListTargetsResponse> {
-          v1::ListTargetsResponse response;
-          const grpc::Status status = impl_->targets->ListTargets(&context, request, &response);
-          if (!status.ok()) return wire::ToAbslStatus(status);
-          return response;
-        });
-    if (!page.ok()) return page.status();
-    for (const v1::Target& t : page->targets()) all.push_back(FromProto(t));
-    token = page->next_page_token();
-  } while (!token.empty());
+  for (const auto& replica : impl_->replicas) {
+    std::string token;
+    do {
+      v1::ListTargetsRequest request;
+      request.set_page_size(1000);
+      request.set_page_token(token);
+      auto page = impl_->Call<v1::ListTargetsResponse>(
+          "", [&]() -> Replica& { return *replica; },
+          [&](Replica& r, grpc::ClientContext& context) -> absl::StatusOr<v1::ListTargetsResponse> {
+            v1::ListTargetsResponse response;
+            const grpc::Status status = r.targets->ListTargets(&context, request, &response);
+            if (!status.ok()) return wire::ToAbslStatus(status);
+            return response;
+          });
+      if (!page.ok()) {
+        return absl::Status(page.status().code(),
+                            absl::StrCat(replica->address, ": ", page.status().message()));
+      }
+      for (const v1::Target& t : page->targets()) all.push_back(FromProto(t));
+      token = page->next_page_token();
+    } while (!token.empty());
+  }
+  std::sort(all.begin(), all.end(),
+            [](const TargetInfo& a, const TargetInfo& b) { return a.id < b.id; });
   return all;
 }
 
 absl::Status Client::DeleteTarget(const std::string& id) {
   v1::DeleteTargetRequest request;
   request.set_target_id(id);
-  return WithRetries<bool>(options_, impl_->jitter, impl_->jitter_mutex,
-                           [&](grpc::ClientContext& context) -> absl::StatusOr<bool> {
-                             v1::DeleteTargetResponse response;
-                             const grpc::Status status =
-                                 impl_->targets->DeleteTarget(&context, request, &response);
-                             if (!status.ok()) return wire::ToAbslStatus(status);
-                             return true;
-                           })
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    impl_->uploaded.erase(id);
+  }
+  return impl_
+      ->Call<bool>(
+          id, [&]() -> Replica& { return impl_->Choose(id); },
+          [&](Replica& replica, grpc::ClientContext& context) -> absl::StatusOr<bool> {
+            v1::DeleteTargetResponse response;
+            const grpc::Status status = replica.targets->DeleteTarget(&context, request, &response);
+            if (!status.ok()) return wire::ToAbslStatus(status);
+            return true;
+          })
       .status();
 }
 
@@ -224,12 +393,30 @@ absl::StatusOr<RemoteRegistrationResult> Client::Register(
   const bool inline_source = payload.size() <= options_.chunk_bytes;
   if (inline_source) header->set_source_data(payload);
 
+  // NOT_FOUND on a target this client uploaded: the replica lost it (restart without storage)
+  // or the target was re-routed here; upload it again and retry once.
+  auto reupload = [&](Replica& replica) {
+    std::shared_ptr<const PointCloud> cloud;
+    {
+      std::lock_guard<std::mutex> lock(impl_->mutex);
+      auto it = impl_->uploaded.find(target_id);
+      if (it == impl_->uploaded.end()) return false;
+      cloud = it->second;
+    }
+    grpc::ClientContext context;
+    impl_->PrepareContext(context);
+    context.AddMetadata(kTargetHeader, target_id);
+    auto uploaded = impl_->UploadTo(replica, context, target_id, *cloud);
+    return uploaded.ok() || uploaded.status().code() == absl::StatusCode::kAlreadyExists;
+  };
+
   int attempts = 1;
-  auto result = WithRetries<RemoteRegistrationResult>(
-      options_, impl_->jitter, impl_->jitter_mutex,
-      [&](grpc::ClientContext& context) -> absl::StatusOr<RemoteRegistrationResult> {
+  auto result = impl_->Call<RemoteRegistrationResult>(
+      target_id, [&]() -> Replica& { return impl_->Choose(target_id); },
+      [&](Replica& replica,
+          grpc::ClientContext& context) -> absl::StatusOr<RemoteRegistrationResult> {
         RemoteRegistrationResult out;
-        auto stream = impl_->registration->Register(&context);
+        auto stream = replica.registration->Register(&context);
         // Cancellation watcher: TryCancel is the only way to interrupt a blocking Read.
         std::atomic<bool> done{false};
         std::thread watcher;
@@ -286,18 +473,22 @@ absl::StatusOr<RemoteRegistrationResult> Client::Register(
           return absl::DataLossError("the server ended the stream without a result");
         return out;
       },
-      &attempts);
+      &attempts, reupload);
   if (result.ok()) result->attempts = attempts;
   return result;
 }
 
-absl::StatusOr<ServerHealth> Client::Health() {
-  return WithRetries<ServerHealth>(
-      options_, impl_->jitter, impl_->jitter_mutex,
-      [&](grpc::ClientContext& context) -> absl::StatusOr<ServerHealth> {
+absl::StatusOr<ServerHealth> Client::Health(std::size_t replica_index) {
+  if (replica_index >= impl_->replicas.size()) {
+    return absl::InvalidArgumentError("no such replica");
+  }
+  Replica& replica = *impl_->replicas[replica_index];
+  return impl_->Call<ServerHealth>(
+      "", [&]() -> Replica& { return replica; },
+      [&](Replica& r, grpc::ClientContext& context) -> absl::StatusOr<ServerHealth> {
         grpc::health::v1::HealthCheckRequest request;
         grpc::health::v1::HealthCheckResponse response;
-        const grpc::Status status = impl_->health->Check(&context, request, &response);
+        const grpc::Status status = r.health->Check(&context, request, &response);
         if (!status.ok()) return wire::ToAbslStatus(status);
         ServerHealth health;
         health.serving = response.status() == grpc::health::v1::HealthCheckResponse::SERVING;
@@ -307,13 +498,16 @@ absl::StatusOr<ServerHealth> Client::Health() {
       });
 }
 
-absl::StatusOr<std::string> Client::StatsJson() {
-  auto stats = WithRetries<v1::GetStatsResponse>(
-      options_, impl_->jitter, impl_->jitter_mutex,
-      [&](grpc::ClientContext& context) -> absl::StatusOr<v1::GetStatsResponse> {
+absl::StatusOr<std::string> Client::StatsJson(std::size_t replica_index) {
+  if (replica_index >= impl_->replicas.size()) {
+    return absl::InvalidArgumentError("no such replica");
+  }
+  Replica& replica = *impl_->replicas[replica_index];
+  auto stats = impl_->Call<v1::GetStatsResponse>(
+      "", [&]() -> Replica& { return replica; },
+      [&](Replica& r, grpc::ClientContext& context) -> absl::StatusOr<v1::GetStatsResponse> {
         v1::GetStatsResponse response;
-        const grpc::Status status =
-            impl_->stats->GetStats(&context, v1::GetStatsRequest(), &response);
+        const grpc::Status status = r.stats->GetStats(&context, v1::GetStatsRequest(), &response);
         if (!status.ok()) return wire::ToAbslStatus(status);
         return response;
       });

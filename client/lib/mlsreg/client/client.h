@@ -1,6 +1,11 @@
-// mlsreg::client::Client: the C++ API of a remote mlsreg server, in domain types. It hides
+// mlsreg::client::Client: the C++ API of remote mlsreg servers, in domain types. It hides
 // chunking, applies default deadlines, retries transient failures (UNAVAILABLE,
-// RESOURCE_EXHAUSTED) with exponential backoff and jitter, and reuses one channel.
+// RESOURCE_EXHAUSTED) with exponential backoff and jitter, and reuses one channel per server.
+//
+// With several servers (replicas), every call about a target goes to the replica chosen by
+// rendezvous hashing of the target id, so each replica caches only its share of the targets.
+// When that replica is down the call moves to the next one in the target's order; when a replica
+// answers NOT_FOUND for a target this client uploaded, the client uploads it again and retries.
 #pragma once
 
 #include <atomic>
@@ -18,7 +23,9 @@
 namespace mlsreg::client {
 
 struct ClientOptions {
-  std::string address = "127.0.0.1:50051";  // host:port, or any gRPC target (dns:///...)
+  // One server "host:port", several separated by commas (replicas), or "dns:///NAME:PORT",
+  // which is resolved to every address behind the name (e.g. a Kubernetes headless service).
+  std::string address = "127.0.0.1:50051";
   // TLS: set `tls` (server verified against `ca_cert`, or the system roots when empty); mutual
   // TLS when client_cert and client_key are given. All are PEM file paths.
   bool tls = false;
@@ -60,9 +67,13 @@ class Client {
   static absl::StatusOr<std::unique_ptr<Client>> Connect(const ClientOptions& options);
   ~Client();
 
+  // Uploads to the target's replica. The client keeps a reference to the cloud so it can upload
+  // it again if a replica loses it (restart without storage, or re-routing).
+  absl::StatusOr<TargetInfo> UploadTarget(const std::string& id,
+                                          std::shared_ptr<const PointCloud> cloud);
   absl::StatusOr<TargetInfo> UploadTarget(const std::string& id, const PointCloud& cloud);
   absl::StatusOr<TargetInfo> GetTarget(const std::string& id);
-  absl::StatusOr<std::vector<TargetInfo>> ListTargets();  // all pages
+  absl::StatusOr<std::vector<TargetInfo>> ListTargets();  // all pages of every replica
   absl::Status DeleteTarget(const std::string& id);
 
   // Streams a registration; `on_progress` (may be empty) sees every progress message. Set
@@ -73,10 +84,14 @@ class Client {
       const std::function<void(const IterationReport&)>& on_progress = {},
       const std::atomic<bool>* cancel = nullptr);
 
-  // The overall health of the server ("" service), via grpc.health.v1.
-  absl::StatusOr<ServerHealth> Health();
-  // The server's statistics as JSON text (the GetStats response).
-  absl::StatusOr<std::string> StatsJson();
+  // The overall health of replica `replica` ("" service), via grpc.health.v1.
+  absl::StatusOr<ServerHealth> Health(std::size_t replica = 0);
+  // Replica `replica`'s statistics as JSON text (the GetStats response).
+  absl::StatusOr<std::string> StatsJson(std::size_t replica = 0);
+
+  // The replicas, in the order given (or resolved), and the one a target id maps to first.
+  std::vector<std::string> replicas() const;
+  std::string ReplicaFor(const std::string& target_id) const;
 
   const ClientOptions& options() const { return options_; }
 

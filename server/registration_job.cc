@@ -1,0 +1,97 @@
+#include "server/registration_job.h"
+
+#include "absl/strings/str_cat.h"
+
+namespace mlsreg::server {
+
+RegistrationJob::RegistrationJob(RegistrationInput input, TargetCache* cache,
+                                 const std::atomic<bool>* server_stop)
+    : input_(std::move(input)),
+      cache_(cache),
+      server_stop_(server_stop),
+      admitted_(std::chrono::steady_clock::now()) {}
+
+bool RegistrationJob::ShouldStop() {
+  StopCause cause = StopCause::kNone;
+  if (cancelled_.load()) {
+    cause = StopCause::kClientCancelled;
+  } else if (server_stop_->load()) {
+    cause = StopCause::kShutdown;
+  } else if (std::chrono::system_clock::now() >= input_.deadline) {
+    cause = StopCause::kDeadline;
+  }
+  if (cause == StopCause::kNone) return false;
+  stop_cause_.store(cause);
+  return true;
+}
+
+void RegistrationJob::Publish(const IterationReport& report) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    latest_ = report;  // latest wins: an unsent older report is simply replaced
+    latest_iteration_ = report.iteration;
+  }
+  changed_.notify_all();
+}
+
+void RegistrationJob::Finish(absl::StatusOr<RegistrationOutcome> outcome) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    outcome_ = std::move(outcome);
+    done_ = true;
+  }
+  changed_.notify_all();
+}
+
+void RegistrationJob::Run() {
+  const double queue_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - admitted_).count();
+  if (ShouldStop()) {  // cancelled, timed out or shut down while queued: do not start
+    Finish(absl::CancelledError("registration stopped before it started"));
+    return;
+  }
+  // Held until Run returns: the target cannot be evicted under a running registration.
+  std::shared_ptr<const Target> target = std::move(input_.target);
+  if (!target) {
+    auto acquired = cache_->Acquire(input_.target_id);
+    if (!acquired.ok()) {
+      Finish(acquired.status());
+      return;
+    }
+    target = *std::move(acquired);
+  }
+  cache_->CountRegistration(input_.target_id);
+
+  RegistrationCallbacks callbacks;
+  callbacks.on_iteration = [this](const IterationReport& report) { Publish(report); };
+  callbacks.should_stop = [this] { return ShouldStop(); };
+  auto result = mlsreg::Register(*target, input_.source, input_.initial, input_.options, callbacks);
+  if (!result.ok()) {
+    Finish(result.status());
+    return;
+  }
+  RegistrationOutcome outcome;
+  outcome.queue_seconds = queue_seconds;
+  if (input_.ground_truth) {
+    outcome.ground_truth_error = EvaluatePose(input_.source.points, result->transform,
+                                              *input_.ground_truth, result->sampling_distance);
+  }
+  outcome.result = *std::move(result);
+  outcome.result.trace.clear();  // progress already went out; the wire result has no trace
+  Finish(std::move(outcome));
+}
+
+RegistrationJob::Update RegistrationJob::WaitForUpdate(std::chrono::milliseconds timeout) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  changed_.wait_for(lock, timeout,
+                    [this] { return done_ || latest_iteration_ > returned_iteration_; });
+  Update update;
+  if (latest_iteration_ > returned_iteration_) {
+    update.progress = latest_;
+    returned_iteration_ = latest_iteration_;
+  }
+  update.done = done_;
+  return update;
+}
+
+}  // namespace mlsreg::server

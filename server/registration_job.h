@@ -1,0 +1,91 @@
+// RegistrationJob: one registration between the gRPC handler that admitted it and the worker
+// that runs it. The worker publishes each iteration into a latest-wins slot (a slow client sees
+// fewer, newer reports instead of making the server buffer them); the handler waits on it,
+// forwards reports and the outcome, and cancels the job when the client goes away. Knows
+// nothing of gRPC.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+
+#include "absl/status/statusor.h"
+#include "mlsreg/metrics.h"
+#include "mlsreg/registration.h"
+#include "server/target_cache.h"
+
+namespace mlsreg::server {
+
+// A validated request.
+struct RegistrationInput {
+  std::string request_id;
+  std::string target_id;
+  // Pinned at admission when resident (so it cannot be evicted while queued); otherwise the
+  // worker reloads it from the store.
+  std::shared_ptr<const Target> target;
+  PointCloud source;
+  Matrix4 initial = Matrix4::Identity();
+  std::optional<Matrix4> ground_truth;
+  RegistrationOptions options;
+  std::chrono::system_clock::time_point deadline = std::chrono::system_clock::time_point::max();
+};
+
+struct RegistrationOutcome {
+  RegistrationResult result;
+  std::optional<PoseError> ground_truth_error;  // when ground truth was given
+  double queue_seconds = 0.0;                   // admitted -> a worker started it
+};
+
+// Why a registration ended with Termination::kCancelled.
+enum class StopCause { kNone, kClientCancelled, kDeadline, kShutdown };
+
+class RegistrationJob {
+ public:
+  // `server_stop` is set when the server's drain time is up; it must outlive the job.
+  RegistrationJob(RegistrationInput input, TargetCache* cache,
+                  const std::atomic<bool>* server_stop);
+
+  // On a worker: runs the registration (or nothing, if cancelled while queued).
+  void Run();
+
+  // The client went away: the job stops at its next iteration, or never starts.
+  void Cancel() { cancelled_.store(true); }
+
+  struct Update {
+    std::optional<IterationReport> progress;  // newer than the one returned before
+    bool done = false;                        // outcome() is final
+  };
+  // Blocks up to `timeout` for a newer report or the end.
+  Update WaitForUpdate(std::chrono::milliseconds timeout);
+
+  // Valid once an Update said done.
+  const absl::StatusOr<RegistrationOutcome>& outcome() const { return outcome_; }
+  StopCause stop_cause() const { return stop_cause_.load(); }
+  const std::string& target_id() const { return input_.target_id; }
+
+ private:
+  bool ShouldStop();
+  void Publish(const IterationReport& report);
+  void Finish(absl::StatusOr<RegistrationOutcome> outcome);
+
+  RegistrationInput input_;
+  TargetCache* const cache_;
+  const std::atomic<bool>* const server_stop_;
+  const std::chrono::steady_clock::time_point admitted_;
+  std::atomic<bool> cancelled_{false};
+  std::atomic<StopCause> stop_cause_{StopCause::kNone};
+
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  std::optional<IterationReport> latest_;  // guarded by mutex_
+  int latest_iteration_ = 0;
+  int returned_iteration_ = 0;  // newest iteration handed to the handler
+  bool done_ = false;
+  absl::StatusOr<RegistrationOutcome> outcome_ = absl::UnknownError("not finished");
+};
+
+}  // namespace mlsreg::server

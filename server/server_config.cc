@@ -1,0 +1,167 @@
+#include "server/server_config.h"
+
+#include <fstream>
+#include <functional>
+#include <limits>
+#include <map>
+#include <sstream>
+#include <type_traits>
+
+#include "absl/strings/str_cat.h"
+#include "nlohmann/json.hpp"
+
+namespace mlsreg::server {
+namespace {
+
+using Json = nlohmann::json;
+
+// One setter per key: it checks the JSON type and stores the value.
+using FieldSetter = std::function<absl::Status(const Json&, ServerConfig*)>;
+
+template <typename T>
+FieldSetter Set(const char* key, T ServerConfig::*member) {
+  return [key, member](const Json& value, ServerConfig* config) -> absl::Status {
+    auto type_error = [&](const char* expected) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("config key '", key, "': expected ", expected, ", got ", value.dump()));
+    };
+    if constexpr (std::is_same_v<T, std::string>) {
+      if (!value.is_string()) return type_error("a string");
+      config->*member = value.get<std::string>();
+    } else if constexpr (std::is_same_v<T, bool>) {
+      if (!value.is_boolean()) return type_error("true or false");
+      config->*member = value.get<bool>();
+    } else if constexpr (std::is_same_v<T, double>) {
+      if (!value.is_number()) return type_error("a number");
+      config->*member = value.get<double>();
+    } else if constexpr (std::is_same_v<T, std::uint64_t>) {
+      if (!value.is_number_unsigned()) return type_error("a non-negative integer");
+      config->*member = value.get<std::uint64_t>();
+    } else {
+      static_assert(std::is_same_v<T, int>);
+      if (!value.is_number_integer()) return type_error("an integer");
+      const auto v = value.get<std::int64_t>();
+      if (v < std::numeric_limits<int>::min() || v > std::numeric_limits<int>::max()) {
+        return type_error("an integer in the int range");
+      }
+      config->*member = static_cast<int>(v);
+    }
+    return absl::OkStatus();
+  };
+}
+
+const std::map<std::string, FieldSetter>& Setters() {
+  static const auto* setters = new std::map<std::string, FieldSetter>{
+      {"listen", Set("listen", &ServerConfig::listen)},
+      {"workers", Set("workers", &ServerConfig::workers)},
+      {"queue_capacity", Set("queue_capacity", &ServerConfig::queue_capacity)},
+      {"cache_budget_bytes", Set("cache_budget_bytes", &ServerConfig::cache_budget_bytes)},
+      {"data_dir", Set("data_dir", &ServerConfig::data_dir)},
+      {"max_points", Set("max_points", &ServerConfig::max_points)},
+      {"max_message_bytes", Set("max_message_bytes", &ServerConfig::max_message_bytes)},
+      {"max_chunk_bytes", Set("max_chunk_bytes", &ServerConfig::max_chunk_bytes)},
+      {"max_concurrent_rpcs", Set("max_concurrent_rpcs", &ServerConfig::max_concurrent_rpcs)},
+      {"tls_cert", Set("tls_cert", &ServerConfig::tls_cert)},
+      {"tls_key", Set("tls_key", &ServerConfig::tls_key)},
+      {"tls_client_ca", Set("tls_client_ca", &ServerConfig::tls_client_ca)},
+      {"allow_insecure_remote", Set("allow_insecure_remote", &ServerConfig::allow_insecure_remote)},
+      {"token", Set("token", &ServerConfig::token)},
+      {"admin_token", Set("admin_token", &ServerConfig::admin_token)},
+      {"drain_seconds", Set("drain_seconds", &ServerConfig::drain_seconds)},
+  };
+  return *setters;
+}
+
+// The host part of host:port, without IPv6 brackets.
+std::string HostOf(const std::string& listen) {
+  if (!listen.empty() && listen.front() == '[') {
+    const std::size_t close = listen.find(']');
+    return close == std::string::npos ? listen : listen.substr(1, close - 1);
+  }
+  const std::size_t colon = listen.rfind(':');
+  return colon == std::string::npos ? listen : listen.substr(0, colon);
+}
+
+}  // namespace
+
+absl::StatusOr<std::string> ReadTextFile(const std::string& path, const std::string& what) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  if (in) text << in.rdbuf();
+  if (!in || in.bad()) {
+    return absl::InvalidArgumentError(absl::StrCat(what, ": cannot read file '", path, "'"));
+  }
+  return text.str();
+}
+
+absl::Status LoadConfigFile(const std::string& path, ServerConfig* config) {
+  auto text = ReadTextFile(path, "config");
+  if (!text.ok()) return text.status();
+  const Json json = Json::parse(*text, /*cb=*/nullptr, /*allow_exceptions=*/false);
+  if (json.is_discarded()) {
+    return absl::InvalidArgumentError(absl::StrCat("config '", path, "': not valid JSON"));
+  }
+  if (!json.is_object()) {
+    return absl::InvalidArgumentError(absl::StrCat("config '", path, "': expected a JSON object"));
+  }
+  for (const auto& [key, value] : json.items()) {
+    const auto setter = Setters().find(key);
+    if (setter == Setters().end()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("config '", path, "': unknown key '", key, "'"));
+    }
+    if (absl::Status s = setter->second(value, config); !s.ok()) {
+      return absl::InvalidArgumentError(absl::StrCat("config '", path, "': ", s.message()));
+    }
+  }
+  return absl::OkStatus();
+}
+
+bool IsLoopbackAddress(const std::string& listen) {
+  if (listen.rfind("unix:", 0) == 0 || listen.rfind("unix-abstract:", 0) == 0) return true;
+  const std::string host = HostOf(listen);
+  return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+}
+
+absl::Status Validate(const ServerConfig& c) {
+  auto bad = [](const char* field, const std::string& rule) {
+    return absl::InvalidArgumentError(absl::StrCat(field, ": ", rule));
+  };
+  if (c.listen.empty()) return bad("listen", "must be host:port");
+  if (c.workers < 0 || c.workers > 1024) return bad("workers", "must be in [0, 1024]");
+  if (c.queue_capacity < 0 || c.queue_capacity > 1'000'000) {
+    return bad("queue_capacity", "must be in [0, 1000000]");
+  }
+  if (c.cache_budget_bytes == 0) return bad("cache_budget_bytes", "must be > 0");
+  if (c.max_points == 0) return bad("max_points", "must be > 0");
+  if (c.max_chunk_bytes <= 0) return bad("max_chunk_bytes", "must be > 0");
+  // A message must be able to carry a full chunk plus its few bytes of framing.
+  if (c.max_message_bytes < c.max_chunk_bytes + 1024) {
+    return bad("max_message_bytes", "must be at least max_chunk_bytes + 1024");
+  }
+  if (c.max_concurrent_rpcs < 4) return bad("max_concurrent_rpcs", "must be >= 4");
+  if (!(c.drain_seconds >= 0.0 && c.drain_seconds <= 3600.0)) {
+    return bad("drain_seconds", "must be in [0, 3600]");
+  }
+  if (c.tls_cert.empty() != c.tls_key.empty()) {
+    return bad("tls_cert", "tls_cert and tls_key must be set together");
+  }
+  if (!c.tls_client_ca.empty() && c.tls_cert.empty()) {
+    return bad("tls_client_ca", "mutual TLS needs tls_cert and tls_key too");
+  }
+  for (const auto& [field, path] :
+       {std::pair{"tls_cert", &c.tls_cert}, std::pair{"tls_key", &c.tls_key},
+        std::pair{"tls_client_ca", &c.tls_client_ca}}) {
+    if (path->empty()) continue;
+    if (auto text = ReadTextFile(*path, field); !text.ok()) return text.status();
+  }
+  if (c.tls_cert.empty() && !c.allow_insecure_remote && !IsLoopbackAddress(c.listen)) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("refusing to serve plaintext on non-loopback address '", c.listen,
+                     "': set tls_cert and tls_key, or allow_insecure_remote when a TLS proxy "
+                     "fronts the server"));
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace mlsreg::server

@@ -1,0 +1,52 @@
+// ServerConfig: everything `mlsreg serve` can be told, with the checks that refuse unsafe or
+// inconsistent settings before anything listens.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+
+namespace mlsreg::server {
+
+struct ServerConfig {
+  // host:port; port 0 picks a free port (MlsregServer::port() tells which).
+  std::string listen = "127.0.0.1:50051";
+  int workers = 0;         // registration/build threads; 0 = hardware cores
+  int queue_capacity = 0;  // jobs waiting for a worker; 0 = 4 * workers
+  std::uint64_t cache_budget_bytes = std::uint64_t{2} << 30;  // resident targets
+  // When set, targets are persisted under data_dir/targets and survive eviction and restarts.
+  std::string data_dir;
+  std::uint64_t max_points = 20'000'000;  // per cloud (target or source)
+  int max_message_bytes = 64 << 20;       // gRPC receive/send limit per message
+  int max_chunk_bytes = 4 << 20;          // data bytes per CloudChunk
+  int max_concurrent_rpcs = 256;          // gRPC sync-server threads
+  // TLS when tls_cert and tls_key are set; mutual TLS (client certificates verified against
+  // tls_client_ca) when tls_client_ca is set too. PEM file paths.
+  std::string tls_cert, tls_key, tls_client_ca;
+  // Plaintext is refused on a non-loopback address unless this is set (e.g. behind a TLS proxy).
+  bool allow_insecure_remote = false;
+  // Bearer tokens: `token` is required by every RPC when set; `admin_token` by DeleteTarget.
+  std::string token, admin_token;
+  // On shutdown, running registrations get this long to finish before they are cancelled.
+  double drain_seconds = 10.0;
+};
+
+// Reads a JSON object whose keys are the field names above (all optional). Unknown keys and
+// wrongly typed values are InvalidArgument naming the key, so a typo never goes unnoticed.
+absl::Status LoadConfigFile(const std::string& path, ServerConfig* config);
+
+// Range and consistency checks. Plaintext on a non-loopback address without
+// allow_insecure_remote is FailedPrecondition; a TLS file that cannot be read is InvalidArgument
+// naming the file.
+absl::Status Validate(const ServerConfig& config);
+
+// True when `listen` (host:port) names a loopback host (127.0.0.0/8, ::1, localhost) or a unix
+// socket, i.e. nobody else can reach a plaintext port.
+bool IsLoopbackAddress(const std::string& listen);
+
+// Reads a whole (PEM) file; InvalidArgument naming `what` and the path when it cannot.
+absl::StatusOr<std::string> ReadTextFile(const std::string& path, const std::string& what);
+
+}  // namespace mlsreg::server

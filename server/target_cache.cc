@@ -1,0 +1,226 @@
+#include "server/target_cache.h"
+
+#include <optional>
+
+#include "absl/strings/str_cat.h"
+
+namespace mlsreg::server {
+namespace {
+
+absl::Status NotFound(std::string_view id) {
+  return absl::NotFoundError(absl::StrCat("target '", std::string(id), "' not found"));
+}
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<TargetCache>> TargetCache::Open(std::uint64_t budget_bytes,
+                                                               std::unique_ptr<TargetStore> store) {
+  std::unique_ptr<TargetCache> cache(new TargetCache(budget_bytes, std::move(store)));
+  if (cache->store_) {
+    auto stored = cache->store_->List();
+    if (!stored.ok()) return stored.status();
+    for (TargetStore::Entry& e : *stored) cache->entries_[e.id].meta = e.meta;
+  }
+  return cache;
+}
+
+StoredTargetMeta TargetCache::MetaOf(const Target& target) {
+  StoredTargetMeta meta;
+  meta.point_count = target.cloud().size();
+  meta.memory_bytes = target.MemoryBytes();
+  meta.sampling_distance = target.sampling_distance();
+  meta.build_seconds = target.build_seconds();
+  meta.viewpoint = target.cloud().viewpoint;
+  return meta;
+}
+
+TargetInfo TargetCache::InfoLocked(const std::string& id, const Entry& entry) const {
+  TargetInfo info;
+  info.id = id;
+  info.state = entry.target ? TargetState::kReady : TargetState::kStored;
+  info.point_count = entry.meta.point_count;
+  info.memory_bytes = entry.meta.memory_bytes;
+  info.sampling_distance = entry.meta.sampling_distance;
+  info.build_seconds = entry.meta.build_seconds;
+  info.registrations = entry.registrations;
+  return info;
+}
+
+absl::Status TargetCache::CheckCanCreate(std::string_view id, std::uint64_t min_bytes) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (entries_.find(id) != entries_.end()) {
+    return absl::AlreadyExistsError(absl::StrCat("target '", std::string(id), "' already exists"));
+  }
+  if (min_bytes > budget_bytes_) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat("target '", std::string(id), "' needs at least ", min_bytes,
+                     " bytes of cache but the budget is ", budget_bytes_, " bytes"));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status TargetCache::MakeRoomLocked(std::uint64_t bytes, std::string_view for_id) {
+  if (bytes_ + bytes <= budget_bytes_) return absl::OkStatus();
+  // Idle: only the cache holds it. Nobody can take a new reference without the mutex, so a
+  // use_count of 1 cannot grow while we decide.
+  auto idle = [](const Entry& e) { return e.target && e.target.use_count() == 1; };
+  std::uint64_t evictable = 0;
+  for (const auto& [id, e] : entries_) {
+    if (idle(e)) evictable += e.meta.memory_bytes;
+  }
+  if (bytes_ - evictable + bytes > budget_bytes_) {
+    return absl::ResourceExhaustedError(absl::StrCat(
+        "target cache full: '", std::string(for_id), "' needs ", bytes, " bytes, ",
+        bytes_ - evictable, " of the ", budget_bytes_, "-byte budget are held by targets in use"));
+  }
+  while (bytes_ + bytes > budget_bytes_) {
+    auto victim = entries_.end();
+    for (auto it = entries_.begin(); it != entries_.end(); ++it) {
+      if (idle(it->second) &&
+          (victim == entries_.end() || it->second.last_use < victim->second.last_use)) {
+        victim = it;
+      }
+    }
+    bytes_ -= victim->second.meta.memory_bytes;
+    ++evictions_;
+    if (store_) {
+      victim->second.target.reset();  // still on disk: STORED
+    } else {
+      entries_.erase(victim);
+    }
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<TargetInfo> TargetCache::Insert(const std::string& id,
+                                               std::shared_ptr<const Target> target) {
+  const StoredTargetMeta meta = MetaOf(*target);
+  std::optional<TargetStore::Staged> staged;
+  if (store_) {
+    auto s = store_->Stage(id, target->cloud(), meta);
+    if (!s.ok()) return s.status();
+    staged = std::move(*s);
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto fail = [&](absl::Status status) {
+    if (staged) store_->Discard(*staged);
+    return status;
+  };
+  if (entries_.find(id) != entries_.end()) {
+    return fail(
+        absl::AlreadyExistsError(absl::StrCat("target '", std::string(id), "' already exists")));
+  }
+  if (absl::Status s = MakeRoomLocked(meta.memory_bytes, id); !s.ok()) return fail(s);
+  if (staged) {
+    if (absl::Status s = store_->Commit(*staged); !s.ok()) return fail(s);
+  }
+  Entry& entry = entries_[id];
+  entry.target = std::move(target);
+  entry.meta = meta;
+  entry.last_use = ++clock_;
+  bytes_ += meta.memory_bytes;
+  return InfoLocked(id, entry);
+}
+
+absl::StatusOr<std::shared_ptr<const Target>> TargetCache::Peek(std::string_view id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = entries_.find(id);
+  if (it == entries_.end()) return NotFound(id);
+  if (it->second.target) {
+    ++hits_;
+    it->second.last_use = ++clock_;
+  }
+  return it->second.target;
+}
+
+absl::StatusOr<std::shared_ptr<const Target>> TargetCache::Acquire(std::string_view id) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const auto it = entries_.find(id);
+    if (it == entries_.end()) return NotFound(id);
+    if (it->second.target) {
+      ++hits_;
+      it->second.last_use = ++clock_;
+      return it->second.target;
+    }
+    if (!store_) return NotFound(id);  // unreachable: without a store evicted means gone
+    ++misses_;
+  }
+  // Reload outside the lock: reading and building take a while and other targets stay usable.
+  // Two concurrent reloads of one target both build; the second one to finish uses the first.
+  auto cloud = store_->Load(std::string(id));
+  if (!cloud.ok()) {
+    if (absl::IsNotFound(cloud.status())) return NotFound(id);  // deleted meanwhile
+    return absl::DataLossError(absl::StrCat("stored target '", std::string(id),
+                                            "' cannot be read: ", cloud.status().message()));
+  }
+  auto built = Target::Build(std::move(*cloud));
+  if (!built.ok()) {
+    return absl::DataLossError(absl::StrCat("stored target '", std::string(id),
+                                            "' cannot be rebuilt: ", built.status().message()));
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = entries_.find(id);
+  if (it == entries_.end()) return NotFound(id);
+  Entry& entry = it->second;
+  if (!entry.target) {
+    const StoredTargetMeta meta = MetaOf(**built);
+    if (absl::Status s = MakeRoomLocked(meta.memory_bytes, id); !s.ok()) return s;
+    entry.target = *std::move(built);
+    entry.meta = meta;
+    bytes_ += meta.memory_bytes;
+  }
+  entry.last_use = ++clock_;
+  return entry.target;
+}
+
+absl::StatusOr<TargetInfo> TargetCache::Info(std::string_view id) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = entries_.find(id);
+  if (it == entries_.end()) return NotFound(id);
+  return InfoLocked(it->first, it->second);
+}
+
+std::vector<TargetInfo> TargetCache::List(std::string_view after, std::size_t limit,
+                                          bool* more) const {
+  std::vector<TargetInfo> page;
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = entries_.upper_bound(after);
+  for (; it != entries_.end() && page.size() < limit; ++it) {
+    page.push_back(InfoLocked(it->first, it->second));
+  }
+  *more = it != entries_.end();
+  return page;
+}
+
+absl::Status TargetCache::Erase(std::string_view id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = entries_.find(id);
+  if (it == entries_.end()) return NotFound(id);
+  // Files go first, under the lock, so a re-upload of the same id cannot be deleted by mistake.
+  if (store_) {
+    if (absl::Status s = store_->Remove(it->first); !s.ok()) return s;
+  }
+  if (it->second.target) bytes_ -= it->second.meta.memory_bytes;
+  entries_.erase(it);
+  return absl::OkStatus();
+}
+
+void TargetCache::CountRegistration(std::string_view id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (const auto it = entries_.find(id); it != entries_.end()) ++it->second.registrations;
+}
+
+CacheCounters TargetCache::counters() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  CacheCounters c;
+  c.bytes = bytes_;
+  c.budget_bytes = budget_bytes_;
+  c.entries = static_cast<int>(entries_.size());
+  c.hits = hits_;
+  c.misses = misses_;
+  c.evictions = evictions_;
+  return c;
+}
+
+}  // namespace mlsreg::server

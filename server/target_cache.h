@@ -1,0 +1,105 @@
+// TargetCache: the targets this server knows, by id. Built targets (kd-tree, normals, curvature)
+// stay resident under a byte budget; the least recently used idle ones are evicted to make room.
+// With a TargetStore every target is also on disk, so eviction only drops the memory: the next
+// registration reloads and rebuilds it (state STORED until then). Without one, eviction forgets
+// the target.
+//
+// Thread-safe behind one mutex, which is never held while a Target is built or a file written.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "mlsreg/target.h"
+#include "server/target_store.h"
+
+namespace mlsreg::server {
+
+enum class TargetState { kReady, kStored };
+
+struct TargetInfo {
+  std::string id;
+  TargetState state = TargetState::kReady;
+  std::uint64_t point_count = 0;
+  std::uint64_t memory_bytes = 0;  // resident bytes, or the last known value when STORED
+  double sampling_distance = 0.0;
+  double build_seconds = 0.0;
+  std::uint64_t registrations = 0;
+};
+
+struct CacheCounters {
+  std::uint64_t bytes = 0;  // held by resident targets
+  std::uint64_t budget_bytes = 0;
+  int entries = 0;              // known targets, resident or stored
+  std::uint64_t hits = 0;       // lookups that found the target resident
+  std::uint64_t misses = 0;     // lookups that had to reload it from the store
+  std::uint64_t evictions = 0;  // targets dropped from memory to make room
+};
+
+class TargetCache {
+ public:
+  // `store` may be null (memory only). Indexes the targets already in the store as STORED.
+  static absl::StatusOr<std::unique_ptr<TargetCache>> Open(std::uint64_t budget_bytes,
+                                                           std::unique_ptr<TargetStore> store);
+
+  // Cheap checks before an upload is read: ALREADY_EXISTS for a known id, RESOURCE_EXHAUSTED
+  // when `min_bytes` (a lower bound of the built target's size) can never fit.
+  absl::Status CheckCanCreate(std::string_view id, std::uint64_t min_bytes) const;
+
+  // Adds a freshly built target (persisting it first when there is a store), evicting idle
+  // targets when needed. ALREADY_EXISTS, or RESOURCE_EXHAUSTED when it cannot fit even after
+  // evicting every idle target.
+  absl::StatusOr<TargetInfo> Insert(const std::string& id, std::shared_ptr<const Target> target);
+
+  // The resident target, or nullptr when it is known but only stored (Acquire loads it).
+  // NOT_FOUND for an unknown id. Never blocks on a build.
+  absl::StatusOr<std::shared_ptr<const Target>> Peek(std::string_view id);
+
+  // The target, reloaded from the store and rebuilt when it is not resident (slow: call it on a
+  // worker). NOT_FOUND for an unknown id.
+  absl::StatusOr<std::shared_ptr<const Target>> Acquire(std::string_view id);
+
+  absl::StatusOr<TargetInfo> Info(std::string_view id) const;
+  // Up to `limit` targets with id > `after`, sorted by id; `more` tells whether others follow.
+  std::vector<TargetInfo> List(std::string_view after, std::size_t limit, bool* more) const;
+  // Forgets the target and deletes its files. Registrations holding it finish normally.
+  absl::Status Erase(std::string_view id);
+
+  void CountRegistration(std::string_view id);
+  CacheCounters counters() const;
+
+ private:
+  struct Entry {
+    std::shared_ptr<const Target> target;  // null when only stored
+    StoredTargetMeta meta;
+    std::uint64_t registrations = 0;
+    std::uint64_t last_use = 0;  // LRU clock value
+  };
+  using Entries = std::map<std::string, Entry, std::less<>>;
+
+  TargetCache(std::uint64_t budget_bytes, std::unique_ptr<TargetStore> store)
+      : budget_bytes_(budget_bytes), store_(std::move(store)) {}
+
+  // Evicts least recently used idle targets until `bytes` more fit; evicts nothing and returns
+  // RESOURCE_EXHAUSTED when that is impossible. Requires mutex_.
+  absl::Status MakeRoomLocked(std::uint64_t bytes, std::string_view for_id);
+  TargetInfo InfoLocked(const std::string& id, const Entry& entry) const;
+  static StoredTargetMeta MetaOf(const Target& target);
+
+  const std::uint64_t budget_bytes_;
+  const std::unique_ptr<TargetStore> store_;
+  mutable std::mutex mutex_;
+  Entries entries_;
+  std::uint64_t bytes_ = 0;
+  std::uint64_t clock_ = 0;
+  std::uint64_t hits_ = 0, misses_ = 0, evictions_ = 0;
+};
+
+}  // namespace mlsreg::server

@@ -1,0 +1,321 @@
+// RegistrationService over a real channel: results identical to the library's, progress
+// streaming, validation of every malformed request while good work goes on, cancellation,
+// deadlines and admission control.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "mlsreg/registration.h"
+#include "mlsreg/wire/convert.h"
+#include "service_test_support.h"
+
+namespace mlsreg::service_test {
+namespace {
+
+#define EXPECT_STATUS(status, expected_code, needle)                                     \
+  do {                                                                                   \
+    const grpc::Status s_ = (status);                                                    \
+    EXPECT_EQ(s_.error_code(), expected_code) << s_.error_message();                     \
+    EXPECT_NE(s_.error_message().find(needle), std::string::npos) << s_.error_message(); \
+  } while (0)
+
+Matrix4 FromWire(const v1::Transform& t) {
+  auto m = wire::FromProto(t, "transform");
+  EXPECT_TRUE(m.ok()) << m.status();
+  return m.ok() ? *m : Matrix4(Matrix4::Identity());
+}
+
+class RegistrationServiceTest : public ::testing::Test {
+ protected:
+  void StartWith(ServerConfig config) {
+    server_ = StartServer(config);
+    ASSERT_NE(server_, nullptr);
+    client_ = Connect(server_->port());
+    ASSERT_TRUE(Upload(client_, "bun045", Bun045()).ok());
+  }
+  int active_jobs() { return Stats(client_).active_jobs(); }
+
+  std::unique_ptr<MlsregServer> server_;
+  Client client_;
+};
+
+TEST_F(RegistrationServiceTest, ResultIsBitIdenticalToTheLibraryAndProgressStreams) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(TestConfig()));
+  const Matrix4 initial = PerturbedStart(5.0, 5.0, 7);
+  const Matrix4& truth = Bun000ToBun045();
+  RegistrationOptions options;  // the library defaults (paper Table 2), seed 1
+  options.seed = 42;
+
+  // Source in 256 KiB chunks, so the payload really arrives in pieces.
+  auto messages = RegisterMessages("bun045", Bun000(), options, initial, truth, 256 << 10);
+  ASSERT_GE(messages.size(), 4u);
+  messages[0].mutable_header()->set_request_id("bit-exact-1");
+  const RegisterOutcome outcome = RunRegister(client_, messages);
+  ASSERT_TRUE(outcome.status.ok()) << outcome.status.error_message();
+
+  auto local = Register(*Bun045Target(), Bun000(), initial, options);
+  ASSERT_TRUE(local.ok()) << local.status();
+
+  // Accepted first, Result last, Progress in between with increasing iteration numbers.
+  ASSERT_GE(outcome.responses.size(), 4u);
+  ASSERT_TRUE(outcome.responses.front().has_accepted());
+  EXPECT_EQ(outcome.responses.front().accepted().request_id(), "bit-exact-1");
+  EXPECT_EQ(outcome.responses.front().accepted().queue_position(), 0);
+  ASSERT_TRUE(outcome.responses.back().has_result());
+  const std::vector<const v1::Progress*> progress = outcome.progress();
+  ASSERT_GE(progress.size(), 2u);
+  for (std::size_t i = 1; i < progress.size(); ++i) {
+    EXPECT_GT(progress[i]->iteration(), progress[i - 1]->iteration());
+  }
+  // The last iteration is always delivered, coalescing or not.
+  EXPECT_EQ(progress.back()->iteration(), local->iterations);
+  EXPECT_TRUE(FromWire(progress.back()->transform()) == local->transform);
+  EXPECT_EQ(progress.back()->counts().matched(), local->trace.back().counts.matched);
+
+  const v1::Result& result = *outcome.result();
+  const Matrix4 served = FromWire(result.transform());
+  for (int i = 0; i < 16; ++i) {
+    EXPECT_EQ(served(i / 4, i % 4), local->transform(i / 4, i % 4)) << "element " << i;
+  }
+  EXPECT_EQ(result.iterations(), local->iterations);
+  EXPECT_EQ(result.termination(), wire::TerminationToProto(local->termination));
+  EXPECT_EQ(result.converged(), local->converged);
+  EXPECT_EQ(result.num_samples(), local->num_samples);
+  EXPECT_EQ(result.sampling_distance(), local->sampling_distance);
+  EXPECT_GE(result.timings().queue_seconds(), 0.0);
+  EXPECT_GT(result.timings().registration_seconds(), 0.0);
+  ASSERT_TRUE(result.has_ground_truth_error());
+  EXPECT_TRUE(result.ground_truth_error().success());
+  EXPECT_LT(result.ground_truth_error().rmse_d(), 2.0);
+  EXPECT_LT(result.ground_truth_error().rotation_error_deg(), 1.0);
+
+  v1::Target target;
+  ASSERT_TRUE(GetTarget(client_, "bun045", &target).ok());
+  EXPECT_EQ(target.registrations(), 1u);
+}
+
+TEST_F(RegistrationServiceTest, InlineSourceAndDefaultsWork) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(TestConfig()));
+  // Method and parameters left unset: MLS-SICP with the library defaults; no request id given.
+  auto messages = RegisterMessages("bun045", Bun000(), QuickOptions(), PerturbedStart(5, 5, 3));
+  messages[0].mutable_header()->clear_parameters();
+  messages[0].mutable_header()->set_method(v1::METHOD_UNSPECIFIED);
+  messages[0].mutable_header()->mutable_parameters()->set_num_samples(500);
+  const RegisterOutcome outcome = RunRegister(client_, messages);
+  ASSERT_TRUE(outcome.status.ok()) << outcome.status.error_message();
+  ASSERT_NE(outcome.accepted(), nullptr);
+  EXPECT_EQ(outcome.accepted()->request_id().rfind("req-", 0), 0u);
+  ASSERT_NE(outcome.result(), nullptr);
+  EXPECT_EQ(outcome.result()->num_samples(), 500);
+  EXPECT_FALSE(outcome.result()->has_ground_truth_error());
+}
+
+TEST_F(RegistrationServiceTest, BadRequestsNameTheFieldWhileAGoodOneRuns) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(TestConfig()));
+  RegistrationOptions long_enough = QuickOptions();
+  long_enough.max_iterations = 60;
+  long_enough.convergence_d = 0.0;  // exactly 60 iterations
+  long_enough.coarse_convergence_d = 0.0;
+  RegisterCall good(client_, RegisterMessages("bun045", Bun000(), long_enough,
+                                              PerturbedStart(5, 5, 4), Bun000ToBun045()));
+  ASSERT_TRUE(good.WaitForAccepted());
+
+  const PointCloud source = Prefix(Bun000(), 5000);
+  const Matrix4 start = PerturbedStart(5, 5, 5);
+  const auto valid = RegisterMessages("bun045", source, QuickOptions(), start);
+  const auto chunked = RegisterMessages("bun045", source, QuickOptions(), start, {}, 32 << 10);
+  auto run = [&](const std::vector<v1::RegisterRequest>& m) {
+    return RunRegister(client_, m).status;
+  };
+  int bad = 0;
+
+  {  // NaN coordinate
+    PointCloud nan = source;
+    nan.points[7].z() = std::numeric_limits<double>::quiet_NaN();
+    EXPECT_STATUS(run(RegisterMessages("bun045", nan, QuickOptions(), start)),
+                  grpc::StatusCode::INVALID_ARGUMENT, "source.points[7]");
+    ++bad;
+  }
+  {  // Inf coordinate, chunked
+    PointCloud inf = source;
+    inf.points[4000].x() = std::numeric_limits<double>::infinity();
+    EXPECT_STATUS(run(RegisterMessages("bun045", inf, QuickOptions(), start, {}, 32 << 10)),
+                  grpc::StatusCode::INVALID_ARGUMENT, "source.points[4000]");
+    ++bad;
+  }
+  {  // zero points
+    auto m = valid;
+    m[0].mutable_header()->mutable_source()->set_point_count(0);
+    m[0].mutable_header()->clear_source_data();
+    EXPECT_STATUS(run(m), grpc::StatusCode::INVALID_ARGUMENT, "header.source.point_count");
+    ++bad;
+  }
+  {  // too few points for a registration
+    EXPECT_STATUS(run(RegisterMessages("bun045", Prefix(source, 2), QuickOptions(), start)),
+                  grpc::StatusCode::INVALID_ARGUMENT, "header.source.point_count");
+    ++bad;
+  }
+  {  // declared count does not match the inline bytes
+    auto m = valid;
+    m[0].mutable_header()->mutable_source()->set_point_count(source.size() + 1);
+    EXPECT_STATUS(run(m), grpc::StatusCode::INVALID_ARGUMENT, "header.source_data");
+    ++bad;
+  }
+  {  // chunks out of order
+    auto m = chunked;
+    std::swap(m[1], m[2]);
+    EXPECT_STATUS(run(m), grpc::StatusCode::INVALID_ARGUMENT, "source_chunk.offset");
+    ++bad;
+  }
+  {  // a chunk above max_chunk_bytes (4 MiB): declare a cloud big enough to need it
+    auto m = valid;
+    m[0].mutable_header()->mutable_source()->set_point_count(300'000);
+    m[0].mutable_header()->clear_source_data();
+    m.resize(2);
+    m[1].mutable_source_chunk()->set_offset(0);
+    m[1].mutable_source_chunk()->set_data(std::string(5 << 20, '\0'));
+    EXPECT_STATUS(run(m), grpc::StatusCode::INVALID_ARGUMENT, "source_chunk.data");
+    ++bad;
+  }
+  {  // the stream ends before the declared source is complete
+    auto m = chunked;
+    m.pop_back();
+    EXPECT_STATUS(run(m), grpc::StatusCode::INVALID_ARGUMENT, "source_chunk");
+    ++bad;
+  }
+  {  // unknown method value
+    auto m = valid;
+    m[0].mutable_header()->set_method(static_cast<v1::Method>(99));
+    EXPECT_STATUS(run(m), grpc::StatusCode::INVALID_ARGUMENT, "method");
+    ++bad;
+  }
+  {  // parameter out of range
+    auto m = valid;
+    m[0].mutable_header()->mutable_parameters()->set_num_samples(1);
+    EXPECT_STATUS(run(m), grpc::StatusCode::INVALID_ARGUMENT, "parameters.num_samples");
+    ++bad;
+  }
+  {  // another parameter out of range
+    auto m = valid;
+    m[0].mutable_header()->mutable_parameters()->set_mls_radius_d(-1.0);
+    EXPECT_STATUS(run(m), grpc::StatusCode::INVALID_ARGUMENT, "parameters.mls.radius_d");
+    ++bad;
+  }
+  {  // non-rigid initial transform (scaled)
+    Matrix4 scaled = start;
+    scaled.topLeftCorner<3, 3>() *= 2.0;
+    EXPECT_STATUS(run(RegisterMessages("bun045", source, QuickOptions(), scaled)),
+                  grpc::StatusCode::INVALID_ARGUMENT, "header.initial_transform");
+    ++bad;
+  }
+  {  // non-rigid ground truth (sheared)
+    Matrix4 sheared = Bun000ToBun045();
+    sheared(0, 1) += 0.3;
+    EXPECT_STATUS(run(RegisterMessages("bun045", source, QuickOptions(), start, sheared)),
+                  grpc::StatusCode::INVALID_ARGUMENT, "header.ground_truth");
+    ++bad;
+  }
+  {  // bad target id
+    EXPECT_STATUS(run(RegisterMessages("bun 045/../x", source, QuickOptions(), start)),
+                  grpc::StatusCode::INVALID_ARGUMENT, "header.target_id");
+    ++bad;
+  }
+  {  // the first message is a chunk
+    auto m = chunked;
+    m.erase(m.begin());
+    EXPECT_STATUS(run(m), grpc::StatusCode::INVALID_ARGUMENT, "header");
+    ++bad;
+  }
+  // Unknown target: NOT_FOUND, answered before the source is sent.
+  EXPECT_STATUS(
+      run(RegisterMessages("no-such-target", source, QuickOptions(), start, {}, 32 << 10)),
+      grpc::StatusCode::NOT_FOUND, "no-such-target");
+
+  const RegisterOutcome outcome = good.Join();
+  ASSERT_TRUE(outcome.status.ok()) << outcome.status.error_message();
+  ASSERT_NE(outcome.result(), nullptr);
+  EXPECT_EQ(outcome.result()->iterations(), 60);
+  EXPECT_TRUE(outcome.result()->ground_truth_error().success());
+
+  // Every bad request was refused before admission: only the good one reached a worker.
+  const v1::GetStatsResponse stats = Stats(client_);
+  std::map<std::string, std::uint64_t> register_codes;
+  for (const auto& c : stats.requests()) {
+    if (c.rpc() == "Register") register_codes[c.code()] = c.count();
+  }
+  EXPECT_EQ(register_codes["INVALID_ARGUMENT"], static_cast<std::uint64_t>(bad));
+  EXPECT_EQ(register_codes["NOT_FOUND"], 1u);
+  EXPECT_EQ(register_codes["OK"], 1u);
+  v1::Target target;
+  ASSERT_TRUE(GetTarget(client_, "bun045", &target).ok());
+  EXPECT_EQ(target.registrations(), 1u);
+}
+
+TEST_F(RegistrationServiceTest, CancellationFreesTheWorkerAtOnce) {
+  ServerConfig config = TestConfig();
+  config.workers = 1;
+  ASSERT_NO_FATAL_FAILURE(StartWith(config));
+  {
+    RegisterCall endless(
+        client_, RegisterMessages("bun045", Bun000(), EndlessOptions(), PerturbedStart(5, 5, 6)));
+    ASSERT_TRUE(endless.WaitForProgress(1));
+    EXPECT_EQ(active_jobs(), 1);
+    endless.Cancel();
+    EXPECT_EQ(endless.Join().status.error_code(), grpc::StatusCode::CANCELLED);
+  }
+  EXPECT_TRUE(Eventually([&] { return active_jobs() == 0; }, std::chrono::seconds(1)));
+  // The only worker is free: the next registration runs.
+  const RegisterOutcome next = RunRegister(
+      client_, RegisterMessages("bun045", Bun000(), QuickOptions(), PerturbedStart(5, 5, 8)));
+  ASSERT_TRUE(next.status.ok()) << next.status.error_message();
+  EXPECT_NE(next.result(), nullptr);
+}
+
+TEST_F(RegistrationServiceTest, DeadlineStopsTheRegistration) {
+  ServerConfig config = TestConfig();
+  config.workers = 1;
+  ASSERT_NO_FATAL_FAILURE(StartWith(config));
+  const auto start = std::chrono::steady_clock::now();
+  const RegisterOutcome outcome = RunRegister(
+      client_, RegisterMessages("bun045", Bun000(), EndlessOptions(), PerturbedStart(5, 5, 9)),
+      std::chrono::milliseconds(700));
+  EXPECT_EQ(outcome.status.error_code(), grpc::StatusCode::DEADLINE_EXCEEDED);
+  EXPECT_GE(outcome.progress_count(), 1);  // it did run
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));
+  EXPECT_TRUE(Eventually([&] { return active_jobs() == 0; }, std::chrono::seconds(1)));
+}
+
+TEST_F(RegistrationServiceTest, FullQueueIsResourceExhausted) {
+  ServerConfig config = TestConfig();
+  config.workers = 1;
+  config.queue_capacity = 1;
+  ASSERT_NO_FATAL_FAILURE(StartWith(config));
+  auto endless = [&](std::uint64_t seed) {
+    return RegisterMessages("bun045", Bun000(), EndlessOptions(), PerturbedStart(5, 5, seed));
+  };
+  RegisterCall running(client_, endless(10));
+  ASSERT_TRUE(running.WaitForProgress(1));
+  RegisterCall queued(client_, endless(11));
+  ASSERT_TRUE(queued.WaitForAccepted());
+  EXPECT_EQ(Stats(client_).queue_depth(), 1);
+
+  const RegisterOutcome refused = RunRegister(client_, endless(12));
+  EXPECT_STATUS(refused.status, grpc::StatusCode::RESOURCE_EXHAUSTED,
+                "job queue full (capacity 1)");
+  EXPECT_EQ(refused.accepted(), nullptr);
+
+  running.Cancel();
+  queued.Cancel();
+  EXPECT_EQ(running.Join().status.error_code(), grpc::StatusCode::CANCELLED);
+  EXPECT_EQ(queued.Join().status.error_code(), grpc::StatusCode::CANCELLED);
+  EXPECT_TRUE(Eventually(
+      [&] {
+        const v1::GetStatsResponse s = Stats(client_);
+        return s.active_jobs() == 0 && s.queue_depth() == 0;
+      },
+      std::chrono::seconds(2)));
+}
+
+}  // namespace
+}  // namespace mlsreg::service_test
