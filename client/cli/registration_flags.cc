@@ -4,7 +4,10 @@ namespace mlsreg::cli {
 
 void RegistrationFlags::AddTo(CLI::App& app, bool method_flag) {
   if (method_flag) {
-    app.add_option("--method", method_, "cp-sicp | mls-sicp")->capture_default_str();
+    std::string names;
+    for (Method m : AllMethods())
+      names += (names.empty() ? "" : " | ") + std::string(MethodName(m));
+    app.add_option("--method", method_, names)->capture_default_str();
   }
   app.add_option("--samples", options_.num_samples, "random source samples")->capture_default_str();
   app.add_option("--seed", options_.seed, "subsampling seed")->capture_default_str();

@@ -18,11 +18,17 @@ std::string_view MethodName(Method method) {
       return "cp-sicp";
     case Method::kMlsSicp:
       return "mls-sicp";
+    case Method::kStSicp:
+      return "st-sicp";
+    case Method::kCpThenMlsSicp:
+      return "cp-sicp+mls-sicp";
   }
   return "unknown";
 }
 
-std::vector<Method> AllMethods() { return {Method::kCpSicp, Method::kMlsSicp}; }
+std::vector<Method> AllMethods() {
+  return {Method::kCpSicp, Method::kMlsSicp, Method::kStSicp, Method::kCpThenMlsSicp};
+}
 
 absl::StatusOr<Method> ParseMethod(std::string_view name) {
   std::string known;
@@ -110,7 +116,9 @@ std::unique_ptr<CorrespondenceFinder> MakeFinder(Method method, const Target& ta
   const double d = target.sampling_distance();
   switch (method) {
     case Method::kCpSicp:
+    case Method::kStSicp:  // on the smoothed target
       return std::make_unique<ClosestPointFinder>(target);
+    case Method::kCpThenMlsSicp:  // phases run as kCpSicp, then kMlsSicp
     case Method::kMlsSicp: {
       MlsOptions mls;
       mls.radius = options.mls.radius_d * d;
@@ -153,19 +161,13 @@ double AnalysisRadius(Method method, const Target& target, const RegistrationOpt
                                     : target.options().analysis_radius_d * d;
 }
 
-}  // namespace
-
-absl::StatusOr<RegistrationResult> Register(const Target& target, const PointCloud& source,
-                                            const Matrix4& initial,
-                                            const RegistrationOptions& options,
-                                            const RegistrationCallbacks& callbacks) {
-  const Clock::time_point start = Clock::now();
-  if (absl::Status s = ValidateOptions(options); !s.ok()) return s;
-  if (absl::Status s = ValidatePointCloud(source, 3); !s.ok()) {
-    return absl::InvalidArgumentError(absl::StrCat("source: ", s.message()));
-  }
-  if (absl::Status s = CheckRigid(initial, "initial_transform"); !s.ok()) return s;
-
+// The Sparse ICP loop with the correspondences of options.method. Inputs are validated by the
+// caller; iteration numbers in reports start after `iteration_offset` and elapsed times count
+// from `start`.
+RegistrationResult RunSparseIcp(const Target& target, const PointCloud& source,
+                                const Matrix4& initial, const RegistrationOptions& options,
+                                const RegistrationCallbacks& callbacks, Clock::time_point start,
+                                int iteration_offset) {
   RegistrationResult result;
   const double d = target.sampling_distance();
   result.sampling_distance = d;
@@ -228,7 +230,7 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
     }
     finder->Find(moved, correspondences);
     IterationReport report;
-    report.iteration = iteration;
+    report.iteration = iteration_offset + iteration;
     report.counts = filter.Apply(moved, moved_normals, samples.surface.curvature,
                                  samples.surface.valid, correspondences, accepted);
     double sum_squared = 0.0;
@@ -260,7 +262,7 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
 
     report.transform = transform.matrix();
     report.elapsed_seconds = Seconds(start);
-    result.iterations = iteration;
+    result.iterations = iteration;  // of this run
     result.trace.push_back(report);
     if (callbacks.on_iteration) callbacks.on_iteration(report);
     if (report.counts.matched < options.min_correspondences) {
@@ -279,6 +281,88 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
     }
   }
   result.transform = transform.matrix();
+  result.timings.total = Seconds(start);
+  return result;
+}
+
+// ST-SICP's target: every target sample projected onto the target's own MLS surface (de-noised;
+// samples whose projection fails keep their position), prepared like any target.
+absl::StatusOr<std::shared_ptr<const Target>> SmoothedTarget(const Target& target,
+                                                             const RegistrationOptions& options) {
+  MlsOptions mls;
+  mls.radius = options.mls.radius_d * target.sampling_distance();
+  mls.polynomial_degree = options.mls.polynomial_degree;
+  mls.max_iterations = options.mls.max_iterations;
+  const MlsProjector projector(target.points(), target.tree(), mls);
+  MlsProjector::Workspace workspace;
+  PointCloud smoothed;
+  smoothed.viewpoint = target.cloud().viewpoint;
+  smoothed.points.reserve(target.points().size());
+  for (const Vec3& p : target.points()) {
+    const MlsProjection projection = projector.Project(p, workspace);
+    smoothed.points.push_back(projection.status == ProjectionStatus::kOk ? projection.point : p);
+  }
+  return Target::Build(std::move(smoothed), target.options());
+}
+
+// Adds a later phase's result to an earlier one's: one trace, summed phase timings.
+void AppendPhase(RegistrationResult& total, RegistrationResult&& phase) {
+  total.transform = phase.transform;
+  total.converged = phase.converged;
+  total.termination = phase.termination;
+  total.iterations += phase.iterations;
+  for (IterationReport& r : phase.trace) total.trace.push_back(std::move(r));
+  total.timings.preprocessing += phase.timings.preprocessing;
+  total.timings.subsampling += phase.timings.subsampling;
+  total.timings.matching += phase.timings.matching;
+  total.timings.optimisation += phase.timings.optimisation;
+}
+
+}  // namespace
+
+absl::StatusOr<RegistrationResult> Register(const Target& target, const PointCloud& source,
+                                            const Matrix4& initial,
+                                            const RegistrationOptions& options,
+                                            const RegistrationCallbacks& callbacks) {
+  const Clock::time_point start = Clock::now();
+  if (absl::Status s = ValidateOptions(options); !s.ok()) return s;
+  if (absl::Status s = ValidatePointCloud(source, 3); !s.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat("source: ", s.message()));
+  }
+  if (absl::Status s = CheckRigid(initial, "initial_transform"); !s.ok()) return s;
+
+  RegistrationResult result;
+  switch (options.method) {
+    case Method::kCpSicp:
+    case Method::kMlsSicp:
+      result = RunSparseIcp(target, source, initial, options, callbacks, start, 0);
+      break;
+    case Method::kStSicp: {
+      const Clock::time_point phase = Clock::now();
+      auto smoothed = SmoothedTarget(target, options);
+      if (!smoothed.ok()) return smoothed.status();
+      const double smoothing = Seconds(phase);
+      result = RunSparseIcp(**smoothed, source, initial, options, callbacks, start, 0);
+      result.timings.preprocessing += smoothing;
+      result.sampling_distance = target.sampling_distance();
+      break;
+    }
+    case Method::kCpThenMlsSicp: {
+      // Phase 1: CP-SICP to convergence without filtering (paper section 5.2.2).
+      RegistrationOptions coarse = options;
+      coarse.method = Method::kCpSicp;
+      coarse.filter.min_normal_dot = -1.0;
+      coarse.filter.min_curvature_ratio = 0.0;
+      result = RunSparseIcp(target, source, initial, coarse, callbacks, start, 0);
+      if (result.termination == Termination::kCancelled) break;
+      // Phase 2: MLS-SICP from there.
+      RegistrationOptions fine = options;
+      fine.method = Method::kMlsSicp;
+      AppendPhase(result, RunSparseIcp(target, source, result.transform, fine, callbacks, start,
+                                       result.iterations));
+      break;
+    }
+  }
   result.timings.total = Seconds(start);
   return result;
 }

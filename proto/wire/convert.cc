@@ -209,15 +209,8 @@ absl::StatusOr<Matrix4> FromProto(const v1::Transform& t, std::string_view field
 // ------------------------------------------------------------------------------------ options
 
 std::string_view MethodName(v1::Method method) {
-  switch (method) {
-    case v1::METHOD_UNSPECIFIED:
-    case v1::METHOD_MLS_SICP:
-      return mlsreg::MethodName(Method::kMlsSicp);
-    case v1::METHOD_CP_SICP:
-      return mlsreg::MethodName(Method::kCpSicp);
-    default:
-      return "";
-  }
+  auto m = MethodFromProto(method);
+  return m.ok() ? mlsreg::MethodName(*m) : "";
 }
 
 absl::StatusOr<Method> MethodFromProto(v1::Method method) {
@@ -227,6 +220,10 @@ absl::StatusOr<Method> MethodFromProto(v1::Method method) {
       return Method::kMlsSicp;
     case v1::METHOD_CP_SICP:
       return Method::kCpSicp;
+    case v1::METHOD_ST_SICP:
+      return Method::kStSicp;
+    case v1::METHOD_CP_SICP_THEN_MLS_SICP:
+      return Method::kCpThenMlsSicp;
     default:
       return absl::InvalidArgumentError(
           absl::StrCat("method: unknown method value ", static_cast<int>(method)));
@@ -239,6 +236,10 @@ v1::Method MethodToProto(Method method) {
       return v1::METHOD_CP_SICP;
     case Method::kMlsSicp:
       return v1::METHOD_MLS_SICP;
+    case Method::kStSicp:
+      return v1::METHOD_ST_SICP;
+    case Method::kCpThenMlsSicp:
+      return v1::METHOD_CP_SICP_THEN_MLS_SICP;
   }
   return v1::METHOD_UNSPECIFIED;
 }

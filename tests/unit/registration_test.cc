@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cctype>
 
 #include "mlsreg/metrics.h"
 #include "support/synthetic.h"
@@ -58,11 +59,48 @@ TEST_P(RegistrationMethodTest, RecoversKnownTransformOfSyntheticPair) {
   EXPECT_LT(result->trace.back().rmse, result->trace.front().rmse);
 }
 
-INSTANTIATE_TEST_SUITE_P(AllMethods, RegistrationMethodTest,
-                         ::testing::Values(Method::kCpSicp, Method::kMlsSicp),
+INSTANTIATE_TEST_SUITE_P(AllMethods, RegistrationMethodTest, ::testing::ValuesIn(AllMethods()),
                          [](const auto& info) {
-                           return std::string(info.param == Method::kCpSicp ? "CpSicp" : "MlsSicp");
+                           std::string name;
+                           for (char c : MethodName(info.param)) {
+                             if (std::isalnum(static_cast<unsigned char>(c))) name += c;
+                           }
+                           return name;
                          });
+
+TEST(RegistrationTest, TwoPhaseRunsClosestPointThenMlsInOneTrace) {
+  const SyntheticPair pair = MakePair(0.0);
+  const double d = pair.target->sampling_distance();
+  RegistrationOptions options;
+  options.method = Method::kCpThenMlsSicp;
+  const Matrix4 initial = RandomPerturbation(5.0, 5.0 * d, Vec3::Zero(), 8) * pair.truth;
+  std::vector<int> seen;
+  RegistrationCallbacks callbacks;
+  callbacks.on_iteration = [&](const IterationReport& r) { seen.push_back(r.iteration); };
+  auto result = Register(*pair.target, pair.source, initial, options, callbacks);
+  ASSERT_TRUE(result.ok());
+  // Iterations are numbered 1..n across both phases; phase 1 ran unfiltered (nothing rejected
+  // by normal or curvature).
+  ASSERT_EQ(static_cast<int>(seen.size()), result->iterations);
+  for (std::size_t i = 0; i < seen.size(); ++i) EXPECT_EQ(seen[i], static_cast<int>(i) + 1);
+  EXPECT_EQ(result->trace.front().counts.rejected_normal, 0);
+  EXPECT_EQ(result->trace.front().counts.rejected_curvature, 0);
+  EXPECT_GE(result->iterations, 3);
+}
+
+TEST(RegistrationTest, StSicpCountsTheTargetSmoothingAsPreprocessing) {
+  const SyntheticPair pair = MakePair(0.0);
+  RegistrationOptions options;
+  options.max_iterations = 3;
+  options.method = Method::kCpSicp;
+  auto cp = Register(*pair.target, pair.source, pair.truth, options);
+  options.method = Method::kStSicp;
+  auto st = Register(*pair.target, pair.source, pair.truth, options);
+  ASSERT_TRUE(cp.ok() && st.ok());
+  // Projecting 20k target samples costs far more than analysing 2k source samples.
+  EXPECT_GT(st->timings.preprocessing, 3.0 * cp->timings.preprocessing);
+  EXPECT_DOUBLE_EQ(st->sampling_distance, pair.target->sampling_distance());
+}
 
 TEST(RegistrationTest, MlsBeatsClosestPointOnNoisySamples) {
   // Noise of 2 d along z: MLS correspondences de-noise the target, closest points do not.

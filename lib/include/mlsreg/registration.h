@@ -20,8 +20,14 @@ namespace mlsreg {
 enum class Method {
   kCpSicp,   // Sparse ICP with closest-point correspondences (paper: CP-SICP)
   kMlsSicp,  // Sparse ICP with MLS correspondences (paper: MLS-SICP)
+  // The target first projected onto its own MLS surface (de-noised; counted as preprocessing),
+  // then CP-SICP (paper: ST-SICP).
+  kStSicp,
+  // CP-SICP without filtering until it converges, then MLS-SICP from there (paper:
+  // CP-SICP+MLS-SICP). max_iterations applies to each phase.
+  kCpThenMlsSicp,
 };
-std::string_view MethodName(Method method);  // "cp-sicp", "mls-sicp"
+std::string_view MethodName(Method method);  // "cp-sicp", "mls-sicp", "st-sicp", ...
 absl::StatusOr<Method> ParseMethod(std::string_view name);
 std::vector<Method> AllMethods();
 
