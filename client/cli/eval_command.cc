@@ -169,14 +169,14 @@ int RunEval(const EvalArgs& args) {
   }
 
   std::FILE* summary = args.out.empty() || args.out == "-" ? stderr : stdout;
-  std::fprintf(summary, "%-10s %5s %9s %14s %14s %12s\n", "method", "runs", "success",
+  std::fprintf(summary, "%-18s %5s %9s %14s %14s %12s\n", "method", "runs", "success",
                "median RMSE/d", "mean RMSE/d", "median time");
   for (Method m : options.methods) {
     const std::vector<double>& e = rmse_by_method[m];
     double mean = 0.0;
     for (double v : e) mean += v;
     if (!e.empty()) mean /= static_cast<double>(e.size());
-    std::fprintf(summary, "%-10s %5d %4d/%-4d %14.4f %14.4f %10.3f s\n",
+    std::fprintf(summary, "%-18s %5d %4d/%-4d %14.4f %14.4f %10.3f s\n",
                  std::string(MethodName(m)).c_str(), runs[m], successes[m], runs[m], Median(e),
                  mean, Median(time_by_method[m]));
   }

@@ -43,6 +43,14 @@ void RegistrationFlags::AddTo(CLI::App& app, bool method_flag) {
       ->capture_default_str();
   app.add_option("--sicp-unit", options_.sicp_length_unit_d, "Sparse ICP length unit (units of d)")
       ->capture_default_str();
+  app.add_option("--gicp-neighbors", options_.gicp.covariance_neighbors,
+                 "G-ICP: neighbours per covariance")
+      ->capture_default_str();
+  app.add_option("--gicp-epsilon", options_.gicp.epsilon, "G-ICP: plane-to-plane epsilon")
+      ->capture_default_str();
+  app.add_option("--gicp-max-distance", options_.gicp.max_distance_d,
+                 "G-ICP: max correspondence distance (units of d)")
+      ->capture_default_str();
   app.add_option("--sicp-metric", metric_, "point-to-plane | point-to-point")
       ->capture_default_str();
 }

@@ -6,6 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "mlsreg/correspondence_finders.h"
+#include "mlsreg/generalized_icp.h"
 #include "mlsreg/kd_tree.h"
 #include "mlsreg/sampling.h"
 #include "mlsreg/surface_analysis.h"
@@ -22,12 +23,15 @@ std::string_view MethodName(Method method) {
       return "st-sicp";
     case Method::kCpThenMlsSicp:
       return "cp-sicp+mls-sicp";
+    case Method::kGicp:
+      return "g-icp";
   }
   return "unknown";
 }
 
 std::vector<Method> AllMethods() {
-  return {Method::kCpSicp, Method::kMlsSicp, Method::kStSicp, Method::kCpThenMlsSicp};
+  return {Method::kCpSicp, Method::kMlsSicp, Method::kStSicp, Method::kCpThenMlsSicp,
+          Method::kGicp};
 }
 
 absl::StatusOr<Method> ParseMethod(std::string_view name) {
@@ -93,6 +97,15 @@ absl::Status ValidateOptions(const RegistrationOptions& o) {
     return bad("filter.max_distance_d", "must be >= 0 (0 disables)");
   }
   if (o.min_correspondences < 3) return bad("min_correspondences", "must be >= 3");
+  if (o.gicp.covariance_neighbors < 3 || o.gicp.covariance_neighbors > 64) {
+    return bad("gicp.covariance_neighbors", "must be in [3, 64]");
+  }
+  if (!(o.gicp.epsilon > 0.0 && o.gicp.epsilon <= 1.0)) {
+    return bad("gicp.epsilon", "must be in (0, 1]");
+  }
+  if (!(o.gicp.max_distance_d > 0.0 && o.gicp.max_distance_d <= 1e6)) {
+    return bad("gicp.max_distance_d", "must be in (0, 1e6]");
+  }
   SparseIcpOptions sicp = o.sicp;
   sicp.length_unit = 1.0;  // derived; validated above
   return ValidateSparseIcpOptions(sicp);
@@ -117,6 +130,7 @@ std::unique_ptr<CorrespondenceFinder> MakeFinder(Method method, const Target& ta
   switch (method) {
     case Method::kCpSicp:
     case Method::kStSicp:  // on the smoothed target
+    case Method::kGicp:    // not used: G-ICP has its own loop
       return std::make_unique<ClosestPointFinder>(target);
     case Method::kCpThenMlsSicp:  // phases run as kCpSicp, then kMlsSicp
     case Method::kMlsSicp: {
@@ -347,6 +361,9 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
       result.sampling_distance = target.sampling_distance();
       break;
     }
+    case Method::kGicp:
+      result = RunGeneralizedIcp(target, source, initial, options, callbacks, start);
+      break;
     case Method::kCpThenMlsSicp: {
       // Phase 1: CP-SICP to convergence without filtering (paper section 5.2.2).
       RegistrationOptions coarse = options;

@@ -224,6 +224,8 @@ absl::StatusOr<Method> MethodFromProto(v1::Method method) {
       return Method::kStSicp;
     case v1::METHOD_CP_SICP_THEN_MLS_SICP:
       return Method::kCpThenMlsSicp;
+    case v1::METHOD_G_ICP:
+      return Method::kGicp;
     default:
       return absl::InvalidArgumentError(
           absl::StrCat("method: unknown method value ", static_cast<int>(method)));
@@ -240,6 +242,8 @@ v1::Method MethodToProto(Method method) {
       return v1::METHOD_ST_SICP;
     case Method::kCpThenMlsSicp:
       return v1::METHOD_CP_SICP_THEN_MLS_SICP;
+    case Method::kGicp:
+      return v1::METHOD_G_ICP;
   }
   return v1::METHOD_UNSPECIFIED;
 }
@@ -280,6 +284,11 @@ absl::StatusOr<RegistrationOptions> OptionsFromProto(v1::Method method,
   if (p.has_sicp_p()) o.sicp.p = p.sicp_p();
   if (p.has_sicp_max_outer()) o.sicp.max_outer = p.sicp_max_outer();
   if (p.has_sicp_length_unit_d()) o.sicp_length_unit_d = p.sicp_length_unit_d();
+  if (p.has_gicp_covariance_neighbors()) {
+    o.gicp.covariance_neighbors = p.gicp_covariance_neighbors();
+  }
+  if (p.has_gicp_epsilon()) o.gicp.epsilon = p.gicp_epsilon();
+  if (p.has_gicp_max_distance_d()) o.gicp.max_distance_d = p.gicp_max_distance_d();
   switch (p.sicp_metric()) {
     case v1::SICP_METRIC_UNSPECIFIED:
     case v1::SICP_METRIC_POINT_TO_PLANE:
@@ -328,6 +337,9 @@ void OptionsToProto(const RegistrationOptions& o, v1::Method* method,
   p->set_sicp_p(o.sicp.p);
   p->set_sicp_max_outer(o.sicp.max_outer);
   p->set_sicp_length_unit_d(o.sicp_length_unit_d);
+  p->set_gicp_covariance_neighbors(o.gicp.covariance_neighbors);
+  p->set_gicp_epsilon(o.gicp.epsilon);
+  p->set_gicp_max_distance_d(o.gicp.max_distance_d);
   p->set_sicp_metric(o.sicp.metric == SicpMetric::kPointToPoint ? v1::SICP_METRIC_POINT_TO_POINT
                                                                 : v1::SICP_METRIC_POINT_TO_PLANE);
 }

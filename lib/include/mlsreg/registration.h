@@ -26,6 +26,9 @@ enum class Method {
   // CP-SICP without filtering until it converges, then MLS-SICP from there (paper:
   // CP-SICP+MLS-SICP). max_iterations applies to each phase.
   kCpThenMlsSicp,
+  // Generalized ICP, plane-to-plane (Segal et al. 2009; paper: G-ICP). Uses `gicp`, not the
+  // Sparse ICP, MLS or filter parameters.
+  kGicp,
 };
 std::string_view MethodName(Method method);  // "cp-sicp", "mls-sicp", "st-sicp", ...
 absl::StatusOr<Method> ParseMethod(std::string_view name);
@@ -39,6 +42,12 @@ struct MlsParams {
   bool warm_start = true;     // start each projection from the previous one's tangent plane
   // Queries with < 3 target samples within r (see FarQueryPolicy).
   FarQueryPolicy far_queries = FarQueryPolicy::kSeedUntilConverged;
+};
+
+struct GicpParams {
+  int covariance_neighbors = 10;  // k of the per-point covariances (paper Table 2: N = 10)
+  double epsilon = 1e-3;          // plane-to-plane regularisation (Table 2)
+  double max_distance_d = 8.0;    // correspondence distance cap (Table 2: 8 d)
 };
 
 struct FilterParams {
@@ -65,6 +74,7 @@ struct RegistrationOptions {
   SparseIcpOptions sicp;  // length_unit and stop are derived from the two fields above
   MlsParams mls;
   FilterParams filter;
+  GicpParams gicp;
   int min_correspondences = 6;  // fewer accepted correspondences end the registration
 };
 
