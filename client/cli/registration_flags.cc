@@ -51,6 +51,10 @@ void RegistrationFlags::AddTo(CLI::App& app, bool method_flag) {
   app.add_option("--gicp-max-distance", options_.gicp.max_distance_d,
                  "G-ICP: max correspondence distance (units of d)")
       ->capture_default_str();
+  app.add_option("--fgr-radius", options_.fgr.feature_radius_d, "FGR: FPFH radius (units of d)")
+      ->capture_default_str();
+  app.add_option("--fgr-samples", options_.fgr.samples, "FGR: samples per cloud with features")
+      ->capture_default_str();
   app.add_option("--sicp-metric", metric_, "point-to-plane | point-to-point")
       ->capture_default_str();
 }

@@ -6,6 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "mlsreg/correspondence_finders.h"
+#include "mlsreg/fast_global_registration.h"
 #include "mlsreg/generalized_icp.h"
 #include "mlsreg/kd_tree.h"
 #include "mlsreg/sampling.h"
@@ -25,13 +26,15 @@ std::string_view MethodName(Method method) {
       return "cp-sicp+mls-sicp";
     case Method::kGicp:
       return "g-icp";
+    case Method::kFgr:
+      return "fgr";
   }
   return "unknown";
 }
 
 std::vector<Method> AllMethods() {
-  return {Method::kCpSicp, Method::kMlsSicp, Method::kStSicp, Method::kCpThenMlsSicp,
-          Method::kGicp};
+  return {Method::kCpSicp,        Method::kMlsSicp, Method::kStSicp,
+          Method::kCpThenMlsSicp, Method::kGicp,    Method::kFgr};
 }
 
 absl::StatusOr<Method> ParseMethod(std::string_view name) {
@@ -106,6 +109,12 @@ absl::Status ValidateOptions(const RegistrationOptions& o) {
   if (!(o.gicp.max_distance_d > 0.0 && o.gicp.max_distance_d <= 1e6)) {
     return bad("gicp.max_distance_d", "must be in (0, 1e6]");
   }
+  if (!(o.fgr.feature_radius_d > 0.0 && o.fgr.feature_radius_d <= 1000.0)) {
+    return bad("fgr.feature_radius_d", "must be in (0, 1000]");
+  }
+  if (o.fgr.samples < 10 || o.fgr.samples > 20000) {
+    return bad("fgr.samples", "must be in [10, 20000]");
+  }
   SparseIcpOptions sicp = o.sicp;
   sicp.length_unit = 1.0;  // derived; validated above
   return ValidateSparseIcpOptions(sicp);
@@ -131,6 +140,7 @@ std::unique_ptr<CorrespondenceFinder> MakeFinder(Method method, const Target& ta
     case Method::kCpSicp:
     case Method::kStSicp:  // on the smoothed target
     case Method::kGicp:    // not used: G-ICP has its own loop
+    case Method::kFgr:     // not used: FGR has its own loop
       return std::make_unique<ClosestPointFinder>(target);
     case Method::kCpThenMlsSicp:  // phases run as kCpSicp, then kMlsSicp
     case Method::kMlsSicp: {
@@ -363,6 +373,9 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
     }
     case Method::kGicp:
       result = RunGeneralizedIcp(target, source, initial, options, callbacks, start);
+      break;
+    case Method::kFgr:
+      result = RunFastGlobalRegistration(target, source, options, callbacks, start);
       break;
     case Method::kCpThenMlsSicp: {
       // Phase 1: CP-SICP to convergence without filtering (paper section 5.2.2).

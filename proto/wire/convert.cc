@@ -226,6 +226,8 @@ absl::StatusOr<Method> MethodFromProto(v1::Method method) {
       return Method::kCpThenMlsSicp;
     case v1::METHOD_G_ICP:
       return Method::kGicp;
+    case v1::METHOD_FGR:
+      return Method::kFgr;
     default:
       return absl::InvalidArgumentError(
           absl::StrCat("method: unknown method value ", static_cast<int>(method)));
@@ -244,6 +246,8 @@ v1::Method MethodToProto(Method method) {
       return v1::METHOD_CP_SICP_THEN_MLS_SICP;
     case Method::kGicp:
       return v1::METHOD_G_ICP;
+    case Method::kFgr:
+      return v1::METHOD_FGR;
   }
   return v1::METHOD_UNSPECIFIED;
 }
@@ -289,6 +293,8 @@ absl::StatusOr<RegistrationOptions> OptionsFromProto(v1::Method method,
   }
   if (p.has_gicp_epsilon()) o.gicp.epsilon = p.gicp_epsilon();
   if (p.has_gicp_max_distance_d()) o.gicp.max_distance_d = p.gicp_max_distance_d();
+  if (p.has_fgr_feature_radius_d()) o.fgr.feature_radius_d = p.fgr_feature_radius_d();
+  if (p.has_fgr_samples()) o.fgr.samples = p.fgr_samples();
   switch (p.sicp_metric()) {
     case v1::SICP_METRIC_UNSPECIFIED:
     case v1::SICP_METRIC_POINT_TO_PLANE:
@@ -340,6 +346,8 @@ void OptionsToProto(const RegistrationOptions& o, v1::Method* method,
   p->set_gicp_covariance_neighbors(o.gicp.covariance_neighbors);
   p->set_gicp_epsilon(o.gicp.epsilon);
   p->set_gicp_max_distance_d(o.gicp.max_distance_d);
+  p->set_fgr_feature_radius_d(o.fgr.feature_radius_d);
+  p->set_fgr_samples(o.fgr.samples);
   p->set_sicp_metric(o.sicp.metric == SicpMetric::kPointToPoint ? v1::SICP_METRIC_POINT_TO_POINT
                                                                 : v1::SICP_METRIC_POINT_TO_PLANE);
 }

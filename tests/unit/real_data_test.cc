@@ -40,6 +40,26 @@ TEST(RealDataTest, BundledBunnyPairsRegister) {
   }
 }
 
+// FGR is global: from a start 90 degrees off, where closest-point ICP converges to a wrong pose,
+// it still finds the ground truth within a couple of degrees.
+TEST(RealDataTest, FgrRecoversALargeRotationThatIcpCannot) {
+  auto manifest = ReadManifest(std::string(MLSREG_SOURCE_DIR) + "/data/bunny/pairs.csv");
+  ASSERT_TRUE(manifest.ok()) << manifest.status();
+  manifest->problems.resize(1);  // bun000 -> bun045
+  EvaluationOptions options;
+  options.methods = {Method::kCpSicp, Method::kFgr};
+  options.perturbation = {90.0, 10.0, 1};
+  auto outcomes = RunEvaluation(*manifest, options);
+  ASSERT_TRUE(outcomes.ok()) << outcomes.status();
+  const ProblemOutcome& icp = (*outcomes)[0];
+  const ProblemOutcome& fgr = (*outcomes)[1];
+  ASSERT_TRUE(icp.status.ok() && fgr.status.ok());
+  EXPECT_GT(icp.error.rmse_d, 5.0);  // ICP fails from there
+  EXPECT_LT(fgr.error.rmse_d, 5.0);
+  EXPECT_LT(fgr.error.rotation_deg, 3.0);
+  EXPECT_EQ(fgr.result.iterations, 64);  // one report per Gauss-Newton step
+}
+
 // All 14 pairs of the shared Stanford bunny set (the project's reported accuracy numbers come from
 // the same protocol via `mlsreg eval`).
 TEST(RealDataTest, MlsSicpSucceedsOnEveryStanfordBunnyPair) {

@@ -29,6 +29,9 @@ enum class Method {
   // Generalized ICP, plane-to-plane (Segal et al. 2009; paper: G-ICP). Uses `gicp`, not the
   // Sparse ICP, MLS or filter parameters.
   kGicp,
+  // Fast Global Registration with FPFH features (Zhou et al. 2016; paper: FGR). Global: ignores
+  // the initial transform. Uses `fgr`.
+  kFgr,
 };
 std::string_view MethodName(Method method);  // "cp-sicp", "mls-sicp", "st-sicp", ...
 absl::StatusOr<Method> ParseMethod(std::string_view name);
@@ -48,6 +51,11 @@ struct GicpParams {
   int covariance_neighbors = 10;  // k of the per-point covariances (paper Table 2: N = 10)
   double epsilon = 1e-3;          // plane-to-plane regularisation (Table 2)
   double max_distance_d = 8.0;    // correspondence distance cap (Table 2: 8 d)
+};
+
+struct FgrParams {
+  double feature_radius_d = 10.0;  // FPFH radius (paper Table 2: 10 d; 15 d for high noise)
+  int samples = 3000;              // random samples of each cloud that get features
 };
 
 struct FilterParams {
@@ -75,6 +83,7 @@ struct RegistrationOptions {
   MlsParams mls;
   FilterParams filter;
   GicpParams gicp;
+  FgrParams fgr;
   int min_correspondences = 6;  // fewer accepted correspondences end the registration
 };
 

@@ -1,0 +1,22 @@
+// Fast Point Feature Histograms (Rusu, Blodow, Beetz 2009): 33-bin descriptors of the local
+// normal geometry, used by Fast Global Registration to match points without an initial pose.
+#pragma once
+
+#include <array>
+#include <vector>
+
+#include "mlsreg/kd_tree.h"
+#include "mlsreg/point_cloud.h"
+
+namespace mlsreg {
+
+using FpfhFeature = std::array<float, 33>;
+
+// FPFH of every point of `points` (with unit `normals`, sign irrelevant) over the neighbours
+// within `radius` among the same points (`tree` indexes them). Each 11-bin block sums to 100;
+// a point without neighbours gets all zeros.
+std::vector<FpfhFeature> ComputeFpfh(const std::vector<Vec3>& points,
+                                     const std::vector<Vec3>& normals, const KdTree& tree,
+                                     double radius);
+
+}  // namespace mlsreg
