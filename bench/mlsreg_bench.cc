@@ -68,12 +68,13 @@ void BM_TargetBuild(benchmark::State& state) {
 }
 BENCHMARK(BM_TargetBuild)->Unit(benchmark::kMillisecond);
 
-// Argument: 0 = CP-SICP, 1 = MLS-SICP. One full registration from the evaluation protocol's
-// start pose (10 degrees, 10 d from the ground truth), 2,000 samples, paper parameters.
+// Argument: index into AllMethods() (cp-sicp, mls-sicp, st-sicp, cp-sicp+mls-sicp, g-icp, fgr).
+// One full registration from the evaluation protocol's start pose (10 degrees, 10 d from the
+// ground truth), 2,000 samples, paper parameters.
 void BM_Registration(benchmark::State& state) {
   const BunnyPair& p = Pair();
   RegistrationOptions options;
-  options.method = state.range(0) == 0 ? Method::kCpSicp : Method::kMlsSicp;
+  options.method = AllMethods().at(static_cast<std::size_t>(state.range(0)));
   const Matrix4 initial =
       RandomPerturbation(10.0, 10.0 * p.target->sampling_distance(), Vec3::Zero(), 1) * p.truth;
   int iterations = 0;
@@ -82,10 +83,10 @@ void BM_Registration(benchmark::State& state) {
     iterations = result->iterations;
     benchmark::DoNotOptimize(result);
   }
-  state.counters["icp_iterations"] = iterations;
+  state.counters["iterations"] = iterations;
   state.SetLabel(std::string(MethodName(options.method)));
 }
-BENCHMARK(BM_Registration)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Registration)->DenseRange(0, 5)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace mlsreg
