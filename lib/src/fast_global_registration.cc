@@ -4,6 +4,7 @@
 #include <cmath>
 #include <random>
 
+#include "loop_support.h"
 #include "mlsreg/fpfh.h"
 #include "mlsreg/rigid_motion.h"
 #include "mlsreg/sampling.h"
@@ -12,10 +13,8 @@
 namespace mlsreg {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double Seconds(Clock::time_point since) {
-  return std::chrono::duration<double>(Clock::now() - since).count();
-}
+using internal::Clock;
+using internal::Seconds;
 
 // FGR's constants (Zhou et al. 2016, reference implementation).
 constexpr double kTupleScale = 0.95;
@@ -184,21 +183,10 @@ RegistrationResult RunFastGlobalRegistration(const Target& target, const PointCl
       }
     }
     const Vector6 delta = h.ldlt().solve(-g);
-    if (delta.allFinite()) {
-      RigidTransform step = RigidTransform::Identity();
-      step.linear() = ExpSo3(delta.head<3>());
-      step.translation() = delta.tail<3>();
-      normalised = step * normalised;
-    }
-    if (report.counts.matched > 0) {
-      report.rmse = std::sqrt(sum_squared / report.counts.matched);
-      report.rmse_d = report.rmse / d;
-    }
-    report.transform = to_world(normalised).matrix();
-    report.elapsed_seconds = Seconds(start);
+    if (delta.allFinite()) normalised = TwistIncrement(delta) * normalised;
+    internal::SetRmse(report, sum_squared, d);
     result.iterations = iteration;
-    result.trace.push_back(report);
-    if (callbacks.on_iteration) callbacks.on_iteration(report);
+    internal::RecordIteration(result, report, to_world(normalised), callbacks, start);
   }
   result.converged = result.termination == Termination::kConverged;
   result.transform = to_world(normalised).matrix();

@@ -4,16 +4,15 @@
 #include <Eigen/Eigenvalues>
 #include <cmath>
 
+#include "loop_support.h"
 #include "mlsreg/rigid_motion.h"
 #include "mlsreg/sampling.h"
 
 namespace mlsreg {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double Seconds(Clock::time_point since) {
-  return std::chrono::duration<double>(Clock::now() - since).count();
-}
+using internal::Clock;
+using internal::Seconds;
 
 Eigen::Matrix3d Skew(const Vec3& v) {
   Eigen::Matrix3d s;
@@ -131,10 +130,7 @@ RegistrationResult RunGeneralizedIcp(const Target& target, const PointCloud& sou
       sum_squared += e.squaredNorm();
       ++report.counts.matched;
     }
-    if (report.counts.matched > 0) {
-      report.rmse = std::sqrt(sum_squared / report.counts.matched);
-      report.rmse_d = report.rmse / d;
-    }
+    internal::SetRmse(report, sum_squared, d);
     result.timings.matching += Seconds(phase);
 
     bool converged = false;
@@ -142,9 +138,7 @@ RegistrationResult RunGeneralizedIcp(const Target& target, const PointCloud& sou
       phase = Clock::now();
       const Vector6 delta = h.ldlt().solve(-g);
       if (delta.allFinite()) {
-        RigidTransform step = RigidTransform::Identity();
-        step.linear() = ExpSo3(delta.head<3>());
-        step.translation() = delta.tail<3>();
+        const RigidTransform step = TwistIncrement(delta);
         double max_move = 0.0;
         for (const Vec3& s : samples) {
           const Vec3 x = transform * s;
@@ -155,11 +149,8 @@ RegistrationResult RunGeneralizedIcp(const Target& target, const PointCloud& sou
       }
       result.timings.optimisation += Seconds(phase);
     }
-    report.transform = transform.matrix();
-    report.elapsed_seconds = Seconds(start);
     result.iterations = iteration;
-    result.trace.push_back(report);
-    if (callbacks.on_iteration) callbacks.on_iteration(report);
+    internal::RecordIteration(result, report, transform, callbacks, start);
     if (report.counts.matched < options.min_correspondences) {
       result.termination = Termination::kTooFewCorrespondences;
       break;

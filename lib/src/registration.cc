@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "absl/strings/str_cat.h"
+#include "loop_support.h"
 #include "mlsreg/correspondence_finders.h"
 #include "mlsreg/fast_global_registration.h"
 #include "mlsreg/generalized_icp.h"
@@ -122,10 +123,8 @@ absl::Status ValidateOptions(const RegistrationOptions& o) {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double Seconds(Clock::time_point since) {
-  return std::chrono::duration<double>(Clock::now() - since).count();
-}
+using internal::Clock;
+using internal::Seconds;
 
 // The source side of a registration: random samples with their local surface properties.
 struct SourceSamples {
@@ -263,10 +262,7 @@ RegistrationResult RunSparseIcp(const Target& target, const PointCloud& source,
       partner_normals[i] = correspondences[i].normal;
       if (accepted[i]) sum_squared += (moved[i] - partner_points[i]).squaredNorm();
     }
-    if (report.counts.matched > 0) {
-      report.rmse = std::sqrt(sum_squared / report.counts.matched);
-      report.rmse_d = report.rmse / d;
-    }
+    internal::SetRmse(report, sum_squared, d);
     result.timings.matching += Seconds(phase);
 
     bool converged = false;
@@ -284,11 +280,8 @@ RegistrationResult RunSparseIcp(const Target& target, const PointCloud& source,
       result.timings.optimisation += Seconds(phase);
     }
 
-    report.transform = transform.matrix();
-    report.elapsed_seconds = Seconds(start);
     result.iterations = iteration;  // of this run
-    result.trace.push_back(report);
-    if (callbacks.on_iteration) callbacks.on_iteration(report);
+    internal::RecordIteration(result, report, transform, callbacks, start);
     if (report.counts.matched < options.min_correspondences) {
       result.termination = Termination::kTooFewCorrespondences;
       break;

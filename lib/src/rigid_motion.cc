@@ -12,6 +12,13 @@ Eigen::Matrix3d ExpSo3(const Vec3& omega) {
   return Eigen::AngleAxisd(angle, omega / angle).toRotationMatrix();
 }
 
+RigidTransform TwistIncrement(const Eigen::Matrix<double, 6, 1>& omega_v) {
+  RigidTransform step = RigidTransform::Identity();
+  step.linear() = ExpSo3(omega_v.head<3>());
+  step.translation() = omega_v.tail<3>();
+  return step;
+}
+
 namespace {
 // Weighted centroid of the entries with positive weight; false when the total weight is zero.
 bool WeightedCentroid(std::span<const Vec3> x, std::span<const double> w, Vec3& centroid) {

@@ -13,6 +13,10 @@ using RigidTransform = Eigen::Isometry3d;
 // Rotation exp([omega]x) (Rodrigues), exact for any angle.
 Eigen::Matrix3d ExpSo3(const Vec3& omega);
 
+// The rigid increment of a Gauss-Newton step over (omega, v): x' = exp([omega]x) x + v, with the
+// exact SO(3) exponential.
+RigidTransform TwistIncrement(const Eigen::Matrix<double, 6, 1>& omega_v);
+
 // argmin_{R,t} sum_i w_i |R x_i + t - y_i|^2 (weighted Kabsch/Umeyama, det-corrected).
 // Entries with w_i = 0 are ignored; identity when the total weight is zero.
 RigidTransform PointToPointMotion(std::span<const Vec3> x, std::span<const Vec3> y,
