@@ -31,6 +31,7 @@ StoredTargetMeta TargetCache::MetaOf(const Target& target) {
   meta.sampling_distance = target.sampling_distance();
   meta.build_seconds = target.build_seconds();
   meta.viewpoint = target.cloud().viewpoint;
+  meta.intrinsics = target.cloud().intrinsics;
   return meta;
 }
 

@@ -29,6 +29,11 @@ Json MetaToJson(const StoredTargetMeta& meta) {
   if (meta.viewpoint) {
     j["viewpoint"] = {meta.viewpoint->x(), meta.viewpoint->y(), meta.viewpoint->z()};
   }
+  if (meta.intrinsics) {
+    const PinholeIntrinsics& k = *meta.intrinsics;
+    j["intrinsics"] = {{"width", k.width}, {"height", k.height}, {"fx", k.fx},
+                       {"fy", k.fy},       {"cx", k.cx},         {"cy", k.cy}};
+  }
   return j;
 }
 
@@ -51,6 +56,15 @@ std::optional<StoredTargetMeta> MetaFromJson(const Json& j) {
       return std::nullopt;
     }
     meta.viewpoint = Vec3(v[0].get<double>(), v[1].get<double>(), v[2].get<double>());
+  }
+  if (j.contains("intrinsics")) {
+    const Json& k = j["intrinsics"];
+    for (const char* key : {"width", "height", "fx", "fy", "cx", "cy"}) {
+      if (!k.is_object() || !k.contains(key) || !k[key].is_number()) return std::nullopt;
+    }
+    meta.intrinsics =
+        PinholeIntrinsics{k["width"].get<int>(), k["height"].get<int>(), k["fx"].get<double>(),
+                          k["fy"].get<double>(), k["cx"].get<double>(),  k["cy"].get<double>()};
   }
   return meta;
 }
@@ -142,7 +156,10 @@ void TargetStore::Discard(const Staged& staged) {
 absl::StatusOr<PointCloud> TargetStore::Load(const std::string& id) const {
   auto cloud = ReadPointCloud(CloudPath(id));
   if (!cloud.ok()) return cloud.status();
-  if (auto meta = ReadMeta(id); meta.ok()) cloud->viewpoint = meta->viewpoint;
+  if (auto meta = ReadMeta(id); meta.ok()) {
+    cloud->viewpoint = meta->viewpoint;
+    cloud->intrinsics = meta->intrinsics;
+  }
   return cloud;
 }
 

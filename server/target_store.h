@@ -26,7 +26,8 @@ struct StoredTargetMeta {
   std::uint64_t memory_bytes = 0;  // when it was last resident
   double sampling_distance = 0.0;
   double build_seconds = 0.0;
-  std::optional<Vec3> viewpoint;  // PLY has no place for it
+  std::optional<Vec3> viewpoint;                // PLY has no place for it
+  std::optional<PinholeIntrinsics> intrinsics;  // organised scans (reverse calibration)
 };
 
 class TargetStore {

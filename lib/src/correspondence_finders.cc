@@ -1,5 +1,7 @@
 #include "mlsreg/correspondence_finders.h"
 
+#include <cmath>
+
 namespace mlsreg {
 
 void ClosestPointFinder::Find(std::span<const Vec3> queries, std::span<Correspondence> out) {
@@ -58,6 +60,50 @@ void MlsCorrespondenceFinder::Find(std::span<const Vec3> queries, std::span<Corr
     c.valid = projection.status == ProjectionStatus::kOk;
     status_[i] = projection.status;
     previous = projection;
+  }
+}
+
+void ReverseCalibrationFinder::Find(std::span<const Vec3> queries, std::span<Correspondence> out) {
+  const DepthGrid& grid = *target_.grid();
+  const std::vector<Vec3>& points = target_.points();
+  const SurfaceProperties& surface = target_.surface();
+  for (std::size_t i = 0; i < queries.size(); ++i) {
+    Correspondence& c = out[i];
+    c.valid = false;
+    double u, v;
+    if (!grid.Project(queries[i], u, v)) continue;
+    const int u0 = static_cast<int>(std::floor(u)), v0 = static_cast<int>(std::floor(v));
+    const double a = u - u0, b = v - v0;
+    const std::int32_t corner[4] = {grid.At(u0, v0), grid.At(u0 + 1, v0), grid.At(u0, v0 + 1),
+                                    grid.At(u0 + 1, v0 + 1)};
+    const double weight[4] = {(1 - a) * (1 - b), a * (1 - b), (1 - a) * b, a * b};
+    bool complete = true;
+    for (std::int32_t k : corner) complete = complete && k >= 0 && surface.valid[k];
+    if (!complete) continue;
+    Vec3 bilinear = Vec3::Zero(), normal = Vec3::Zero();
+    double curvature = 0.0;
+    Vec3 n[4];
+    for (int k = 0; k < 4; ++k) {
+      n[k] = surface.normals[corner[k]];
+      // Unoriented normals: make the four agree before blending them.
+      if (k > 0 && n[k].dot(n[0]) < 0.0) n[k] = -n[k];
+      bilinear += weight[k] * points[corner[k]];
+      normal += weight[k] * n[k];
+      curvature += weight[k] * surface.curvature[corner[k]];
+    }
+    Vec3 point = bilinear;
+    if (interpolation_ == Interpolation::kPhong) {
+      Vec3 phong = Vec3::Zero();
+      for (int k = 0; k < 4; ++k) {
+        phong += weight[k] * (bilinear - (bilinear - points[corner[k]]).dot(n[k]) * n[k]);
+      }
+      point = (1.0 - alpha_) * bilinear + alpha_ * phong;
+    }
+    if (!(normal.norm() > 0.0)) continue;
+    c.point = point;
+    c.normal = normal.normalized();
+    c.curvature = curvature;
+    c.valid = true;
   }
 }
 

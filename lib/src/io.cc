@@ -13,6 +13,7 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
+#include "mlsreg/depth_grid.h"
 
 namespace mlsreg {
 namespace {
@@ -112,6 +113,13 @@ absl::StatusOr<PointCloud> ReadPointCloud(const std::string& path) {
   absl::StatusOr<PointCloud> cloud = Parse(*format, *bytes);
   if (!cloud.ok()) {
     return absl::Status(cloud.status().code(), absl::StrCat(path, ": ", cloud.status().message()));
+  }
+  // An organised scan's pinhole intrinsics travel in a sidecar file (see depth_grid.h).
+  absl::StatusOr<PinholeIntrinsics> intrinsics = ReadIntrinsicsSidecar(path);
+  if (intrinsics.ok()) {
+    cloud->intrinsics = *intrinsics;
+  } else if (intrinsics.status().code() != absl::StatusCode::kNotFound) {
+    return intrinsics.status();
   }
   return cloud;
 }

@@ -29,13 +29,17 @@ std::string_view MethodName(Method method) {
       return "g-icp";
     case Method::kFgr:
       return "fgr";
+    case Method::kRcBl:
+      return "rc-bl";
+    case Method::kRcP:
+      return "rc-p";
   }
   return "unknown";
 }
 
 std::vector<Method> AllMethods() {
-  return {Method::kCpSicp,        Method::kMlsSicp, Method::kStSicp,
-          Method::kCpThenMlsSicp, Method::kGicp,    Method::kFgr};
+  return {Method::kCpSicp, Method::kMlsSicp, Method::kStSicp, Method::kCpThenMlsSicp,
+          Method::kGicp,   Method::kFgr,     Method::kRcBl,   Method::kRcP};
 }
 
 absl::StatusOr<Method> ParseMethod(std::string_view name) {
@@ -141,6 +145,12 @@ std::unique_ptr<CorrespondenceFinder> MakeFinder(Method method, const Target& ta
     case Method::kGicp:    // not used: G-ICP has its own loop
     case Method::kFgr:     // not used: FGR has its own loop
       return std::make_unique<ClosestPointFinder>(target);
+    case Method::kRcBl:
+      return std::make_unique<ReverseCalibrationFinder>(
+          target, ReverseCalibrationFinder::Interpolation::kBilinear);
+    case Method::kRcP:
+      return std::make_unique<ReverseCalibrationFinder>(
+          target, ReverseCalibrationFinder::Interpolation::kPhong);
     case Method::kCpThenMlsSicp:  // phases run as kCpSicp, then kMlsSicp
     case Method::kMlsSicp: {
       MlsOptions mls;
@@ -352,6 +362,16 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
   switch (options.method) {
     case Method::kCpSicp:
     case Method::kMlsSicp:
+      result = RunSparseIcp(target, source, initial, options, callbacks, start, 0);
+      break;
+    case Method::kRcBl:
+    case Method::kRcP:
+      if (!target.grid()) {
+        return absl::FailedPreconditionError(
+            "method " + std::string(MethodName(options.method)) +
+            " needs an organised target with pinhole intrinsics (a depth image); this target "
+            "has none (give the target file a .intrinsics sidecar, see depth_grid.h)");
+      }
       result = RunSparseIcp(target, source, initial, options, callbacks, start, 0);
       break;
     case Method::kStSicp: {

@@ -25,6 +25,11 @@ absl::StatusOr<std::shared_ptr<const Target>> Target::Build(PointCloud cloud,
   target->surface_ = AnalyzeSurface(target->cloud_.points, *target->tree_,
                                     options.analysis_radius_d * target->sampling_distance_,
                                     target->cloud_.viewpoint);
+  if (target->cloud_.intrinsics) {
+    auto grid = DepthGrid::Build(target->cloud_.points, *target->cloud_.intrinsics);
+    if (!grid.ok()) return grid.status();
+    target->grid_ = *std::move(grid);
+  }
   target->build_seconds_ =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return std::shared_ptr<const Target>(std::move(target));
@@ -34,7 +39,7 @@ std::size_t Target::MemoryBytes() const {
   return cloud_.points.capacity() * sizeof(Vec3) + cloud_.normals.capacity() * sizeof(Vec3) +
          surface_.normals.capacity() * sizeof(Vec3) +
          surface_.curvature.capacity() * sizeof(double) + surface_.valid.capacity() +
-         tree_->MemoryBytes() + sizeof(Target);
+         tree_->MemoryBytes() + (grid_ ? grid_->MemoryBytes() : 0) + sizeof(Target);
 }
 
 }  // namespace mlsreg

@@ -5,6 +5,7 @@
 #include <cstring>
 
 #include "absl/strings/str_cat.h"
+#include "mlsreg/depth_grid.h"
 
 namespace mlsreg::wire {
 
@@ -53,6 +54,15 @@ absl::StatusOr<std::uint64_t> CheckCloudHeader(const v1::CloudHeader& header,
     const v1::Vector3& v = header.viewpoint();
     if (!std::isfinite(v.x()) || !std::isfinite(v.y()) || !std::isfinite(v.z())) {
       return absl::InvalidArgumentError(f + ".viewpoint: non-finite coordinate");
+    }
+  }
+  if (header.has_intrinsics()) {
+    const v1::PinholeIntrinsics& k = header.intrinsics();
+    if (absl::Status s = ValidateIntrinsics(
+            PinholeIntrinsics{k.width(), k.height(), k.fx(), k.fy(), k.cx(), k.cy()},
+            f + ".intrinsics");
+        !s.ok()) {
+      return s;
     }
   }
   return header.point_count() * RecordBytes(header);
@@ -114,6 +124,10 @@ absl::StatusOr<PointCloud> DecodeRecords(const v1::CloudHeader& header, std::str
   if (header.has_viewpoint()) {
     cloud.viewpoint = Vec3(header.viewpoint().x(), header.viewpoint().y(), header.viewpoint().z());
   }
+  if (header.has_intrinsics()) {
+    const v1::PinholeIntrinsics& k = header.intrinsics();
+    cloud.intrinsics = PinholeIntrinsics{k.width(), k.height(), k.fx(), k.fy(), k.cx(), k.cy()};
+  }
   return cloud;
 }
 }  // namespace
@@ -144,6 +158,15 @@ void EncodeCloud(const PointCloud& cloud, v1::ScalarType scalar_type, v1::CloudH
     header->mutable_viewpoint()->set_x(cloud.viewpoint->x());
     header->mutable_viewpoint()->set_y(cloud.viewpoint->y());
     header->mutable_viewpoint()->set_z(cloud.viewpoint->z());
+  }
+  if (cloud.intrinsics) {
+    v1::PinholeIntrinsics* k = header->mutable_intrinsics();
+    k->set_width(cloud.intrinsics->width);
+    k->set_height(cloud.intrinsics->height);
+    k->set_fx(cloud.intrinsics->fx);
+    k->set_fy(cloud.intrinsics->fy);
+    k->set_cx(cloud.intrinsics->cx);
+    k->set_cy(cloud.intrinsics->cy);
   }
   payload->clear();
   payload->reserve(cloud.size() * RecordBytes(*header));
@@ -228,6 +251,10 @@ absl::StatusOr<Method> MethodFromProto(v1::Method method) {
       return Method::kGicp;
     case v1::METHOD_FGR:
       return Method::kFgr;
+    case v1::METHOD_RC_BL:
+      return Method::kRcBl;
+    case v1::METHOD_RC_P:
+      return Method::kRcP;
     default:
       return absl::InvalidArgumentError(
           absl::StrCat("method: unknown method value ", static_cast<int>(method)));
@@ -248,6 +275,10 @@ v1::Method MethodToProto(Method method) {
       return v1::METHOD_G_ICP;
     case Method::kFgr:
       return v1::METHOD_FGR;
+    case Method::kRcBl:
+      return v1::METHOD_RC_BL;
+    case Method::kRcP:
+      return v1::METHOD_RC_P;
   }
   return v1::METHOD_UNSPECIFIED;
 }

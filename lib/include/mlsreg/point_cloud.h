@@ -13,6 +13,13 @@ namespace mlsreg {
 using Vec3 = Eigen::Vector3d;
 
 // Positions (and optionally normals) of one scan, in double precision, contiguous.
+// A pinhole camera: pixel (u, v) = (fx x / z + cx, fy y / z + cy) for a point in its frame.
+struct PinholeIntrinsics {
+  int width = 0;
+  int height = 0;
+  double fx = 0.0, fy = 0.0, cx = 0.0, cy = 0.0;
+};
+
 struct PointCloud {
   std::vector<Vec3> points;
   // Empty, or one unit normal per point.
@@ -20,6 +27,9 @@ struct PointCloud {
   // The sensor origin in this cloud's frame, when the file says where it was (PCD VIEWPOINT, or
   // set by the caller). Normals are oriented toward it when known.
   std::optional<Vec3> viewpoint;
+  // Set for an organised scan taken by a pinhole camera, with the cloud in the camera's frame
+  // (camera at the origin looking along +z). Needed by reverse calibration (RC-BL, RC-P).
+  std::optional<PinholeIntrinsics> intrinsics;
 
   std::size_t size() const { return points.size(); }
   bool empty() const { return points.empty(); }

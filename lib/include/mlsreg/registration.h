@@ -32,6 +32,10 @@ enum class Method {
   // Fast Global Registration with FPFH features (Zhou et al. 2016; paper: FGR). Global: ignores
   // the initial transform. Uses `fgr`.
   kFgr,
+  // Reverse calibration with bilinear (RC-BL) or Phong (RC-P) interpolation in the target's depth
+  // image, inside Sparse ICP. The target must carry pinhole intrinsics (organised scan).
+  kRcBl,
+  kRcP,
 };
 std::string_view MethodName(Method method);  // "cp-sicp", "mls-sicp", "st-sicp", ...
 absl::StatusOr<Method> ParseMethod(std::string_view name);

@@ -4,6 +4,7 @@
 #include <memory>
 
 #include "absl/status/statusor.h"
+#include "mlsreg/depth_grid.h"
 #include "mlsreg/kd_tree.h"
 #include "mlsreg/point_cloud.h"
 #include "mlsreg/surface_analysis.h"
@@ -29,6 +30,8 @@ class Target {
   const std::vector<Vec3>& points() const { return cloud_.points; }
   const KdTree& tree() const { return *tree_; }
   const SurfaceProperties& surface() const { return surface_; }
+  // The organised grid when the cloud carries pinhole intrinsics, else null.
+  const DepthGrid* grid() const { return grid_ ? &*grid_ : nullptr; }
   // Mean nearest-neighbour distance d (paper Eq. 11).
   double sampling_distance() const { return sampling_distance_; }
   const TargetOptions& options() const { return options_; }
@@ -41,6 +44,7 @@ class Target {
   PointCloud cloud_;
   std::unique_ptr<KdTree> tree_;
   SurfaceProperties surface_;
+  std::optional<DepthGrid> grid_;
   double sampling_distance_ = 0.0;
   TargetOptions options_;
   double build_seconds_ = 0.0;

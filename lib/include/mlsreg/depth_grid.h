@@ -1,0 +1,46 @@
+// DepthGrid: the organised structure of a scan taken by a pinhole camera, needed by reverse
+// calibration (RC-BL, RC-P). The scan is in its camera's frame: camera at the origin looking
+// along +z, pixel (u, v) = (fx x / z + cx, fy y / z + cy).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "mlsreg/point_cloud.h"
+
+namespace mlsreg {
+
+// Positive size and focal lengths, finite principal point; the message names `field`.
+absl::Status ValidateIntrinsics(const PinholeIntrinsics& k, std::string_view field);
+
+// The sidecar of a scan file: `<path>.intrinsics`, a text file holding the six numbers
+// "width height fx fy cx cy" (whitespace separated; '#' starts a comment). NotFound when absent.
+absl::StatusOr<PinholeIntrinsics> ReadIntrinsicsSidecar(const std::string& scan_path);
+std::string FormatIntrinsics(const PinholeIntrinsics& k);
+
+class DepthGrid {
+ public:
+  // Assigns every point with z > 0 to the pixel it projects to (the nearest point wins a pixel).
+  // InvalidArgument when the intrinsics are invalid or no point lands in the image.
+  static absl::StatusOr<DepthGrid> Build(const std::vector<Vec3>& points,
+                                         const PinholeIntrinsics& intrinsics);
+
+  const PinholeIntrinsics& intrinsics() const { return k_; }
+  // Index of the point at pixel (u, v), or -1 for an empty pixel or outside the image.
+  std::int32_t At(int u, int v) const {
+    if (u < 0 || v < 0 || u >= k_.width || v >= k_.height) return -1;
+    return pixels_[static_cast<std::size_t>(v) * k_.width + u];
+  }
+  // Real-valued pixel coordinates of a point in the camera frame; false behind the camera.
+  bool Project(const Vec3& p, double& u, double& v) const;
+  std::size_t MemoryBytes() const { return pixels_.capacity() * sizeof(std::int32_t); }
+
+ private:
+  PinholeIntrinsics k_;
+  std::vector<std::int32_t> pixels_;
+};
+
+}  // namespace mlsreg
