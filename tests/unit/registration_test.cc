@@ -98,18 +98,28 @@ TEST(RegistrationTest, TwoPhaseRunsClosestPointThenMlsInOneTrace) {
   EXPECT_GE(result->iterations, 3);
 }
 
-TEST(RegistrationTest, StSicpCountsTheTargetSmoothingAsPreprocessing) {
+TEST(RegistrationTest, StSicpMatchesAgainstTheDenoisedTarget) {
+  // Noise of 2 d on the target only: ST-SICP smooths the target onto its MLS surface first, so at
+  // the true pose its closest points lie much nearer the (noise-free) source than CP-SICP's.
   const SyntheticPair pair = MakePair(0.0);
+  const double d = pair.target->sampling_distance();
+  auto noisy = Target::Build(SampleBumpySurface(20000, -1.0, 1.0, 1, 2.0 * d));
+  ASSERT_TRUE(noisy.ok());
   RegistrationOptions options;
-  options.max_iterations = 3;
+  options.max_iterations = 1;
+  options.mls.radius_d = 8.0;
+  // A noise-free source (H ~ 0) against a noisy target (H ~ 0.02) fails every curvature-ratio
+  // test; this test is about where the partners lie, so compare without it.
+  options.filter.min_curvature_ratio = 0.0;
   options.method = Method::kCpSicp;
-  auto cp = Register(*pair.target, pair.source, pair.truth, options);
+  auto cp = Register(**noisy, pair.source, pair.truth, options);
   options.method = Method::kStSicp;
-  auto st = Register(*pair.target, pair.source, pair.truth, options);
+  auto st = Register(**noisy, pair.source, pair.truth, options);
   ASSERT_TRUE(cp.ok() && st.ok());
-  // Projecting 20k target samples costs far more than analysing 2k source samples.
-  EXPECT_GT(st->timings.preprocessing, 3.0 * cp->timings.preprocessing);
-  EXPECT_DOUBLE_EQ(st->sampling_distance, pair.target->sampling_distance());
+  // Measured 0.75: the normal-direction noise is gone, the tangential gap to the nearest
+  // (smoothed) sample remains.
+  EXPECT_LT(st->trace.front().rmse, 0.85 * cp->trace.front().rmse);
+  EXPECT_DOUBLE_EQ(st->sampling_distance, (*noisy)->sampling_distance());
 }
 
 TEST(RegistrationTest, MlsBeatsClosestPointOnNoisySamples) {
