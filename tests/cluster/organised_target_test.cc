@@ -13,16 +13,7 @@ namespace {
 TEST(OrganisedTargetTest, IntrinsicsTravelAndRcPMatchesInProcess) {
   const PinholeIntrinsics camera{80, 60, 50.0, 50.0, 39.5, 29.5};
   auto depth = [](double x, double y) { return 2.0 + 0.4 * testing::BumpyHeight(x, y); };
-  PointCloud scan;
-  scan.intrinsics = camera;
-  for (int v = 0; v < camera.height; ++v) {
-    for (int u = 0; u < camera.width; ++u) {
-      const Vec3 ray((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, 1.0);
-      double z = 2.0;
-      for (int k = 0; k < 50; ++k) z = depth(ray.x() * z, ray.y() * z);
-      scan.points.push_back(ray * z);
-    }
-  }
+  const PointCloud scan = testing::RenderDepthImage(camera, depth);
   PointCloud source = testing::SampleBumpySurface(5000, -0.4, 0.4, 9);
   for (Vec3& p : source.points) p.z() = depth(p.x(), p.y());
 

@@ -63,4 +63,22 @@ inline PointCloud SampleSphere(std::size_t count, double radius, double min_z, s
   return cloud;
 }
 
+// An organised scan of the surface z = depth(x, y) by a pinhole camera at the origin looking
+// along +z: one point per pixel, found along the pixel's ray by fixed-point iteration (the
+// surface must be a gentle height field in front of the camera).
+template <typename Depth>
+PointCloud RenderDepthImage(const PinholeIntrinsics& camera, Depth depth) {
+  PointCloud cloud;
+  cloud.intrinsics = camera;
+  for (int v = 0; v < camera.height; ++v) {
+    for (int u = 0; u < camera.width; ++u) {
+      const Vec3 ray((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, 1.0);
+      double z = 2.0;
+      for (int k = 0; k < 50; ++k) z = depth(ray.x() * z, ray.y() * z);
+      cloud.points.push_back(ray * z);
+    }
+  }
+  return cloud;
+}
+
 }  // namespace mlsreg::testing

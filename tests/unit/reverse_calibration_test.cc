@@ -18,21 +18,9 @@ namespace {
 
 const PinholeIntrinsics kCamera{96, 72, 60.0, 60.0, 47.5, 35.5};
 
-// An organised scan of the surface z = depth(x, y) seen by kCamera: one point per pixel, found
-// along the pixel's ray by fixed-point iteration.
 template <typename Depth>
 PointCloud Render(Depth depth) {
-  PointCloud cloud;
-  cloud.intrinsics = kCamera;
-  for (int v = 0; v < kCamera.height; ++v) {
-    for (int u = 0; u < kCamera.width; ++u) {
-      const Vec3 ray((u - kCamera.cx) / kCamera.fx, (v - kCamera.cy) / kCamera.fy, 1.0);
-      double z = 2.0;
-      for (int k = 0; k < 50; ++k) z = depth(ray.x() * z, ray.y() * z);
-      cloud.points.push_back(ray * z);
-    }
-  }
-  return cloud;
+  return testing::RenderDepthImage(kCamera, depth);
 }
 
 TEST(DepthGridTest, PlacesEveryPixelOfARenderedScan) {
