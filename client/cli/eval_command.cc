@@ -24,6 +24,7 @@ struct EvalArgs {
   std::vector<std::string> manifests;
   std::string methods = "cp-sicp,mls-sicp";
   std::string out;
+  std::string label;
   double angle_deg = 0.0;
   double translation_d = 0.0;
   std::uint64_t perturb_seed = 1;
@@ -43,12 +44,19 @@ double Median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-std::string TraceColumn(const RegistrationResult& r, bool elapsed) {
+std::string JoinNumbers(const std::vector<double>& values) {
   std::vector<std::string> parts;
-  for (const IterationReport& it : r.trace) {
-    parts.push_back(absl::StrFormat("%.5g", elapsed ? it.elapsed_seconds : it.rmse_d));
-  }
+  parts.reserve(values.size());
+  for (double v : values) parts.push_back(absl::StrFormat("%.5g", v));
   return absl::StrJoin(parts, " ");
+}
+
+std::string TraceColumn(const RegistrationResult& r, bool elapsed) {
+  std::vector<double> values;
+  for (const IterationReport& it : r.trace) {
+    values.push_back(elapsed ? it.elapsed_seconds : it.rmse_d);
+  }
+  return JoinNumbers(values);
 }
 
 const char* kFixedColumns[] = {"manifest",
@@ -73,7 +81,9 @@ const char* kFixedColumns[] = {"manifest",
                                "time_optimisation_s",
                                "target_build_s",
                                "trace_rmse_d",
-                               "trace_elapsed_s"};
+                               "trace_elapsed_s",
+                               "trace_error_d",
+                               "label"};
 
 int RunEval(const EvalArgs& args) {
   auto registration = args.flags.ToOptions();
@@ -121,7 +131,7 @@ int RunEval(const EvalArgs& args) {
       ++runs[o.method];
       if (!o.status.ok()) {
         f.push_back(std::string(o.status.message()));
-        f.resize(std::size(kFixedColumns));
+        f.resize(std::size(kFixedColumns) - 1);
       } else {
         const RegistrationResult& r = o.result;
         f.push_back("ok");
@@ -140,10 +150,12 @@ int RunEval(const EvalArgs& args) {
         }
         f.push_back(TraceColumn(r, false));
         f.push_back(TraceColumn(r, true));
+        f.push_back(JoinNumbers(o.trace_error_d));
         rmse_by_method[o.method].push_back(o.error.rmse_d);
         time_by_method[o.method].push_back(r.timings.total);
         successes[o.method] += o.error.success;
       }
+      f.push_back(args.label);
       for (const std::string& c : extra_columns) {
         std::string value;
         for (const auto& [name, v] : p.extra) {
@@ -195,6 +207,7 @@ CommandRunner AddEvalCommand(CLI::App& app) {
   cmd->add_option("--pairs", args->manifests, "manifest CSV (repeatable)")->required();
   cmd->add_option("--methods", args->methods, "comma-separated methods")->capture_default_str();
   cmd->add_option("--out", args->out, "results CSV (default: stdout)");
+  cmd->add_option("--label", args->label, "written in every row's label column (e.g. a variant)");
   cmd->add_option("--perturb-angle", args->angle_deg,
                   "rotate each start pose by this angle (degrees) about a seeded random axis")
       ->capture_default_str();

@@ -16,6 +16,12 @@ void RegistrationFlags::AddTo(CLI::App& app, bool method_flag) {
   app.add_option("--convergence", options_.convergence_d,
                  "stop when no sample moves more than this (units of d)")
       ->capture_default_str();
+  app.add_option("--stall", options_.stall_d,
+                 "also stop when the last 8 poses stay within this (units of d; 0 disables)")
+      ->capture_default_str();
+  app.add_option("--tangential-damping", options_.tangential_damping,
+                 "point-to-plane with MLS/RC partners: weight damping sliding along the surface")
+      ->capture_default_str();
   app.add_option("--mls-radius", options_.mls.radius_d, "MLS support radius r (units of d)")
       ->capture_default_str();
   app.add_option("--mls-degree", options_.mls.polynomial_degree, "MLS polynomial degree (0-3)")

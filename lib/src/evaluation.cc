@@ -105,6 +105,10 @@ ProblemOutcome RunOne(const RegistrationProblem& problem, std::size_t index, Met
   }
   out.result = *std::move(result);
   out.error = EvaluatePose((*source)->points, out.result.transform, truth, d);
+  out.trace_error_d.reserve(out.result.trace.size());
+  for (const IterationReport& it : out.result.trace) {
+    out.trace_error_d.push_back(EvaluatePose((*source)->points, it.transform, truth, d).rmse_d);
+  }
   return out;
 }
 

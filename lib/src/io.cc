@@ -13,28 +13,24 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
+#include "io_internal.h"
 #include "mlsreg/depth_grid.h"
 
 namespace mlsreg {
 namespace {
 
-enum class FileFormat { kPly, kPcd, kXyz };
+using io_internal::LowerCaseExtension;
+using io_internal::ReadFileBytes;
 
-// The extension of the last path component, lower-cased, with its dot (".ply"); empty if none.
-std::string LowerCaseExtension(const std::string& path) {
-  const std::size_t slash = path.find_last_of('/');
-  const std::size_t name_start = slash == std::string::npos ? 0 : slash + 1;
-  const std::size_t dot = path.find_last_of('.');
-  if (dot == std::string::npos || dot <= name_start) return "";
-  return absl::AsciiStrToLower(path.substr(dot));
-}
+enum class FileFormat { kPly, kPcd, kXyz, kNpy };
 
 absl::StatusOr<FileFormat> FormatOfPath(const std::string& path) {
   const std::string extension = LowerCaseExtension(path);
   if (extension == ".ply") return FileFormat::kPly;
   if (extension == ".pcd") return FileFormat::kPcd;
   if (extension == ".xyz" || extension == ".txt" || extension == ".csv") return FileFormat::kXyz;
-  constexpr const char* kExpected = "expected .ply, .pcd, .xyz, .txt or .csv";
+  if (extension == ".npy") return FileFormat::kNpy;
+  constexpr const char* kExpected = "expected .ply, .pcd, .xyz, .txt, .csv or .npy";
   if (extension.empty()) {
     return absl::InvalidArgumentError(
         absl::StrCat("'", path, "' has no file extension; ", kExpected));
@@ -56,6 +52,19 @@ struct FileCloser {
 };
 using FilePtr = std::unique_ptr<std::FILE, FileCloser>;
 
+}  // namespace
+
+namespace io_internal {
+
+// The extension of the last path component, lower-cased, with its dot (".ply"); empty if none.
+std::string LowerCaseExtension(const std::string& path) {
+  const std::size_t slash = path.find_last_of('/');
+  const std::size_t name_start = slash == std::string::npos ? 0 : slash + 1;
+  const std::size_t dot = path.find_last_of('.');
+  if (dot == std::string::npos || dot <= name_start) return "";
+  return absl::AsciiStrToLower(path.substr(dot));
+}
+
 absl::StatusOr<std::string> ReadFileBytes(const std::string& path) {
   errno = 0;
   FilePtr file(std::fopen(path.c_str(), "rb"));
@@ -67,6 +76,10 @@ absl::StatusOr<std::string> ReadFileBytes(const std::string& path) {
   if (std::ferror(file.get())) return FileError(errno, "read", path);
   return bytes;
 }
+
+}  // namespace io_internal
+
+namespace {
 
 absl::Status WriteFileBytes(const std::string& path, const std::string& bytes) {
   errno = 0;
@@ -87,6 +100,8 @@ absl::StatusOr<PointCloud> Parse(FileFormat format, std::string_view bytes) {
       return ParsePcd(bytes);
     case FileFormat::kXyz:
       return ParseXyz(bytes);
+    case FileFormat::kNpy:
+      return ParseNpy(bytes);
   }
   return absl::InternalError("unknown file format");
 }
@@ -99,6 +114,8 @@ std::string Serialize(const PointCloud& cloud, FileFormat format, const WriteOpt
       return SerializePcd(cloud, options.pcd);
     case FileFormat::kXyz:
       return SerializeXyz(cloud);
+    case FileFormat::kNpy:
+      return SerializeNpy(cloud);
   }
   return "";
 }

@@ -25,6 +25,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "mlsreg/point_cloud.h"
+#include "mlsreg/triangle_mesh.h"
 
 namespace mlsreg::io_internal {
 
@@ -137,6 +138,14 @@ inline bool NextToken(std::string_view* rest, std::string_view* token) {
   rest->remove_prefix(end);
   return true;
 }
+
+// ---------------------------------------------------------------------------------------------
+// Files (io.cc).
+
+// The extension of the last path component, lower-cased, with its dot (".ply"); empty if none.
+std::string LowerCaseExtension(const std::string& path);
+// The whole file; NotFound when it or a directory on its path does not exist, else Unavailable.
+absl::StatusOr<std::string> ReadFileBytes(const std::string& path);
 
 // ---------------------------------------------------------------------------------------------
 // Numbers.
@@ -342,5 +351,15 @@ inline void AppendPointsAsBinary(const PointCloud& cloud, std::endian order, std
     for (int k = 0; with_normals && k < 3; ++k) AppendDoubleBinary(cloud.normals[i][k], order, out);
   }
 }
+
+// ---------------------------------------------------------------------------------------------
+// Meshes (mesh_io.cc).
+
+// Splits polygon i (sizes[i] corners, taken in order from `indices`) into a fan of triangles,
+// checking every index is an integer in range; the result passes ValidateTriangleMesh.
+absl::StatusOr<TriangleMesh> TriangulatePolygons(std::string_view format,
+                                                 std::vector<Vec3> vertices,
+                                                 const std::vector<std::uint32_t>& sizes,
+                                                 const std::vector<double>& indices);
 
 }  // namespace mlsreg::io_internal

@@ -18,6 +18,7 @@
 #include "absl/strings/str_cat.h"
 #include "io_internal.h"
 #include "mlsreg/io.h"
+#include "mlsreg/triangle_mesh.h"
 
 namespace mlsreg {
 namespace {
@@ -48,7 +49,24 @@ struct PlyProperty {
   ScalarType type{};                          // of the value, or of each item of a list
   std::optional<ScalarType> list_count_type;  // set for "property list <count> <item> <name>"
   int component = Component::kNotAComponent;  // which point value it holds (vertex element only)
+  bool face_indices = false;  // the face element's vertex_indices list, kept when reading a mesh
 };
+
+// The polygons of a mesh as read: sizes[i] vertex indices per polygon, all in one array.
+struct PlyPolygons {
+  std::vector<std::uint32_t> sizes;
+  std::vector<double> indices;
+};
+
+// Keeps one list item when `property` holds face vertex indices and polygons are being read.
+void KeepListItem(const PlyProperty& property, double value, PlyPolygons* polygons) {
+  if (polygons != nullptr && property.face_indices) polygons->indices.push_back(value);
+}
+void KeepListSize(const PlyProperty& property, std::uint64_t count, PlyPolygons* polygons) {
+  if (polygons != nullptr && property.face_indices) {
+    polygons->sizes.push_back(static_cast<std::uint32_t>(count));
+  }
+}
 
 struct PlyElement {
   std::string name;
@@ -274,7 +292,7 @@ std::uint64_t MaxListCount(ScalarType type) {
 
 // Reads the values of one instance of `element` from `line`; vertex values go to `*values`.
 absl::Status ReadAsciiInstance(const PlyElement& element, std::string_view line,
-                               const Location& where, PointValues* values) {
+                               const Location& where, PointValues* values, PlyPolygons* polygons) {
   std::string_view token;
   for (const PlyProperty& property : element.properties) {
     if (!NextToken(&line, &token)) {
@@ -288,6 +306,7 @@ absl::Status ReadAsciiInstance(const PlyElement& element, std::string_view line,
             where, absl::StrCat("list '", property.name, "' has an invalid count ", Quote(token)));
       }
       items = *count;
+      KeepListSize(property, items, polygons);
     }
     for (std::uint64_t item = 0; item < items; ++item) {
       if (property.list_count_type && !NextToken(&line, &token)) {
@@ -300,6 +319,7 @@ absl::Status ReadAsciiInstance(const PlyElement& element, std::string_view line,
                                            " is not a number"));
       }
       if (property.component != Component::kNotAComponent) (*values)[property.component] = *value;
+      if (property.list_count_type) KeepListItem(property, *value, polygons);
     }
   }
   if (NextToken(&line, &token)) {
@@ -310,7 +330,7 @@ absl::Status ReadAsciiInstance(const PlyElement& element, std::string_view line,
 
 // Reads every instance of `element`; when `cloud` is set (the vertex element) appends the points.
 absl::Status ReadAsciiElement(const PlyElement& element, bool has_normals, LineCursor& lines,
-                              PointCloud* cloud) {
+                              PointCloud* cloud, PlyPolygons* polygons) {
   if (cloud != nullptr) {
     const std::uint64_t max_lines =
         io_internal::MaxTextLines(lines.rest().size(), element.properties.size());
@@ -325,7 +345,9 @@ absl::Status ReadAsciiElement(const PlyElement& element, bool has_normals, LineC
                                   PluralName(element), " the header declares"));
     }
     const Location where = {kPly, Location::Unit::kLine, lines.line_number(), element.name, i};
-    if (absl::Status s = ReadAsciiInstance(element, line, where, &values); !s.ok()) return s;
+    if (absl::Status s = ReadAsciiInstance(element, line, where, &values, polygons); !s.ok()) {
+      return s;
+    }
     if (cloud != nullptr) {
       if (absl::Status s = AppendPoint(values, has_normals, where, cloud); !s.ok()) return s;
     }
@@ -333,10 +355,12 @@ absl::Status ReadAsciiElement(const PlyElement& element, bool has_normals, LineC
   return absl::OkStatus();
 }
 
-absl::Status ReadAsciiBody(const PlyHeader& header, LineCursor& lines, PointCloud* cloud) {
+absl::Status ReadAsciiBody(const PlyHeader& header, LineCursor& lines, PointCloud* cloud,
+                           PlyPolygons* polygons) {
   for (const PlyElement& element : header.elements) {
     PointCloud* destination = element.name == kVertex ? cloud : nullptr;
-    if (absl::Status s = ReadAsciiElement(element, header.has_normals, lines, destination);
+    if (absl::Status s =
+            ReadAsciiElement(element, header.has_normals, lines, destination, polygons);
         !s.ok()) {
       return s;
     }
@@ -408,7 +432,7 @@ absl::StatusOr<const char*> TakeBytes(std::uint64_t size, const PlyProperty& pro
 
 // Reads one instance of `element` starting at `in.offset`; vertex values go to `*values`.
 absl::Status ReadBinaryInstance(const PlyElement& element, const Location& where, BinaryInput& in,
-                                PointValues* values) {
+                                PointValues* values, PlyPolygons* polygons) {
   for (const PlyProperty& property : element.properties) {
     if (property.list_count_type) {
       const std::size_t count_offset = in.offset;
@@ -423,9 +447,15 @@ absl::Status ReadBinaryInstance(const PlyElement& element, const Location& where
                                               count, ")"));
       }
       const auto items_size = static_cast<std::uint64_t>(count) * property.type.size;
-      if (absl::StatusOr<const char*> items = TakeBytes(items_size, property, where, in);
-          !items.ok()) {
-        return items.status();
+      absl::StatusOr<const char*> items = TakeBytes(items_size, property, where, in);
+      if (!items.ok()) return items.status();
+      KeepListSize(property, static_cast<std::uint64_t>(count), polygons);
+      for (std::uint64_t k = 0;
+           polygons != nullptr && property.face_indices && k < static_cast<std::uint64_t>(count);
+           ++k) {
+        KeepListItem(property,
+                     DecodeScalar(*items + k * property.type.size, property.type, in.order),
+                     polygons);
       }
       continue;
     }
@@ -440,7 +470,7 @@ absl::Status ReadBinaryInstance(const PlyElement& element, const Location& where
 
 // Reads every instance of `element`; when `cloud` is set (the vertex element) appends the points.
 absl::Status ReadBinaryElement(const PlyElement& element, bool has_normals, BinaryInput& in,
-                               PointCloud* cloud) {
+                               PointCloud* cloud, PlyPolygons* polygons) {
   if (absl::Status status = CheckBinaryCountFits(element, in); !status.ok()) return status;
   if (cloud == nullptr && !HasLists(element)) {  // Fixed-size records: nothing to check inside.
     in.offset += element.count * MinRecordSize(element);
@@ -452,7 +482,9 @@ absl::Status ReadBinaryElement(const PlyElement& element, bool has_normals, Bina
   PointValues values{};
   for (std::uint64_t i = 0; i < element.count; ++i) {
     const Location where = {kPly, Location::Unit::kByteOffset, in.offset, element.name, i};
-    if (absl::Status s = ReadBinaryInstance(element, where, in, &values); !s.ok()) return s;
+    if (absl::Status s = ReadBinaryInstance(element, where, in, &values, polygons); !s.ok()) {
+      return s;
+    }
     if (cloud != nullptr) {
       if (absl::Status s = AppendPoint(values, has_normals, where, cloud); !s.ok()) return s;
     }
@@ -461,7 +493,7 @@ absl::Status ReadBinaryElement(const PlyElement& element, bool has_normals, Bina
 }
 
 absl::Status ReadBinaryBody(const PlyHeader& header, std::string_view bytes,
-                            std::size_t data_offset, PointCloud* cloud) {
+                            std::size_t data_offset, PointCloud* cloud, PlyPolygons* polygons) {
   BinaryInput in = {.bytes = bytes,
                     .order = header.encoding == PlyEncoding::kBinaryBigEndian ? std::endian::big
                                                                               : std::endian::little,
@@ -469,7 +501,8 @@ absl::Status ReadBinaryBody(const PlyHeader& header, std::string_view bytes,
                     .offset = data_offset};
   for (const PlyElement& element : header.elements) {
     PointCloud* destination = element.name == kVertex ? cloud : nullptr;
-    if (absl::Status s = ReadBinaryElement(element, header.has_normals, in, destination); !s.ok()) {
+    if (absl::Status s = ReadBinaryElement(element, header.has_normals, in, destination, polygons);
+        !s.ok()) {
       return s;
     }
   }
@@ -516,10 +549,38 @@ absl::StatusOr<PointCloud> ParsePly(std::string_view bytes) {
   if (!header.ok()) return header.status();
   PointCloud cloud;
   const absl::Status status = header->encoding == PlyEncoding::kAscii
-                                  ? ReadAsciiBody(*header, lines, &cloud)
-                                  : ReadBinaryBody(*header, bytes, lines.offset(), &cloud);
+                                  ? ReadAsciiBody(*header, lines, &cloud, nullptr)
+                                  : ReadBinaryBody(*header, bytes, lines.offset(), &cloud, nullptr);
   if (!status.ok()) return status;
   return io_internal::FinishCloud(kPly, std::move(cloud));
+}
+
+absl::StatusOr<TriangleMesh> ParsePlyMesh(std::string_view bytes) {
+  LineCursor lines(bytes);
+  absl::StatusOr<PlyHeader> header = ParsePlyHeader(lines);
+  if (!header.ok()) return header.status();
+  bool has_faces = false;
+  for (PlyElement& element : header->elements) {
+    for (PlyProperty& property : element.properties) {
+      if (element.name == "face" && property.list_count_type &&
+          (property.name == "vertex_indices" || property.name == "vertex_index")) {
+        property.face_indices = has_faces = true;
+      }
+    }
+  }
+  if (!has_faces) {
+    return absl::InvalidArgumentError(
+        "PLY header has no \"face\" element with a \"vertex_indices\" list: not a mesh");
+  }
+  PointCloud cloud;
+  PlyPolygons polygons;
+  const absl::Status status =
+      header->encoding == PlyEncoding::kAscii
+          ? ReadAsciiBody(*header, lines, &cloud, &polygons)
+          : ReadBinaryBody(*header, bytes, lines.offset(), &cloud, &polygons);
+  if (!status.ok()) return status;
+  return io_internal::TriangulatePolygons("PLY", std::move(cloud.points), polygons.sizes,
+                                          polygons.indices);
 }
 
 std::string SerializePly(const PointCloud& cloud, PlyEncoding encoding) {

@@ -83,6 +83,10 @@ absl::Status ValidateOptions(const RegistrationOptions& o) {
   if (!(o.coarse_convergence_d >= 0.0 && o.coarse_convergence_d <= 100.0)) {
     return bad("coarse_convergence_d", "must be in [0, 100]");
   }
+  if (!(o.stall_d >= 0.0 && o.stall_d <= 100.0)) return bad("stall_d", "must be in [0, 100]");
+  if (!(o.tangential_damping >= 0.0 && o.tangential_damping <= 1e3)) {
+    return bad("tangential_damping", "must be in [0, 1000]");
+  }
   if (!(o.sicp_length_unit_d > 0.0 && o.sicp_length_unit_d <= 1e6)) {
     return bad("sicp_length_unit_d", "must be in (0, 1e6]");
   }
@@ -168,22 +172,39 @@ std::unique_ptr<CorrespondenceFinder> MakeFinder(Method method, const Target& ta
 // can make it alternate between two or more poses forever.
 constexpr std::size_t kCycleMemory = 8;
 
-// True when the samples, now at `moved` = transform * samples, are within `threshold` of where
-// one of the recent poses put them: no motion (the newest pose) or a cycle (an older one).
+// The largest distance between where `transform` and `pose` put the samples (`moved` =
+// transform * samples), or a value >= limit as soon as one sample moves that far.
+double MaxDisplacement(std::span<const Vec3> moved, const RigidTransform& transform,
+                       const RigidTransform& pose, double limit) {
+  const double limit_squared = limit * limit;
+  const RigidTransform back = pose * transform.inverse(Eigen::Isometry);  // pose * p = back * y
+  double worst = 0.0;
+  for (const Vec3& y : moved) {
+    worst = std::max(worst, (back * y - y).squaredNorm());
+    if (worst >= limit_squared) break;
+  }
+  return std::sqrt(worst);
+}
+
+// True when the samples are within `threshold` of where one of the recent poses put them: no
+// motion (the newest pose) or a cycle (an older one).
 bool ReturnsToRecentPose(std::span<const Vec3> moved, const RigidTransform& transform,
                          std::span<const RigidTransform> recent, double threshold) {
-  const double threshold_squared = threshold * threshold;
   for (const RigidTransform& pose : recent) {
-    // pose * p = back * (transform * p)
-    const RigidTransform back = pose * transform.inverse(Eigen::Isometry);
-    double worst = 0.0;
-    for (const Vec3& y : moved) {
-      worst = std::max(worst, (back * y - y).squaredNorm());
-      if (worst >= threshold_squared) break;
-    }
-    if (worst < threshold_squared) return true;
+    if (MaxDisplacement(moved, transform, pose, threshold) < threshold) return true;
   }
   return false;
+}
+
+// True when a full memory of recent poses all lie within `band` of the current one: the pose
+// only jitters (hard filters flipping a few correspondences back and forth on noisy data).
+bool Stalled(std::span<const Vec3> moved, const RigidTransform& transform,
+             std::span<const RigidTransform> recent, double band) {
+  if (band <= 0.0 || recent.size() < kCycleMemory) return false;
+  for (const RigidTransform& pose : recent) {
+    if (MaxDisplacement(moved, transform, pose, band) >= band) return false;
+  }
+  return true;
 }
 
 // Radius of the source's local analysis: the scale at which the target side's curvature is
@@ -237,6 +258,12 @@ RegistrationResult RunSparseIcp(const Target& target, const PointCloud& source,
   SparseIcpOptions sicp = options.sicp;
   sicp.length_unit = options.sicp_length_unit_d * d;
   sicp.stop = options.convergence_d / options.sicp_length_unit_d;
+  // Sliding is damped once every partner is a foot point: not in a coarse phase, whose far
+  // queries are seeded from target samples.
+  const double damping = sicp.metric == SicpMetric::kPointToPlane && finder->foot_points()
+                             ? options.tangential_damping
+                             : 0.0;
+  sicp.tangential_weight = finder->can_refine() ? 0.0 : damping;
   SparseIcpSolver solver(sicp);
 
   // Per-iteration buffers, allocated once.
@@ -285,7 +312,9 @@ RegistrationResult RunSparseIcp(const Target& target, const PointCloud& source,
       transform = increment * transform;
       const double threshold =
           (finder->can_refine() ? options.coarse_convergence_d : options.convergence_d) * d;
-      converged = ReturnsToRecentPose(moved, transform, recent_poses, threshold);
+      converged =
+          ReturnsToRecentPose(moved, transform, recent_poses, threshold) ||
+          (!finder->can_refine() && Stalled(moved, transform, recent_poses, options.stall_d * d));
       report.admm_iterations = solver.last_outer_iterations();
       result.timings.optimisation += Seconds(phase);
     }
@@ -298,6 +327,7 @@ RegistrationResult RunSparseIcp(const Target& target, const PointCloud& source,
     }
     if (converged && finder->can_refine()) {
       finder->Refine();  // the finer correspondences get their own run to convergence
+      solver.set_tangential_weight(damping);
       recent_poses.clear();
       converged = false;
     }

@@ -56,7 +56,7 @@ RigidTransform PointToPointMotion(std::span<const Vec3> x, std::span<const Vec3>
 
 RigidTransform PointToPlaneMotion(std::span<const Vec3> x, std::span<const Vec3> y,
                                   std::span<const Vec3> n, std::span<const double> u,
-                                  std::span<const double> w) {
+                                  std::span<const double> w, double tangential_weight) {
   RigidTransform result = RigidTransform::Identity();
   Vec3 mean;
   if (!WeightedCentroid(x, w, mean)) return result;
@@ -73,6 +73,17 @@ RigidTransform PointToPlaneMotion(std::span<const Vec3> x, std::span<const Vec3>
     const double residual = (x[i] - y[i]).dot(n[i]) - u[i];
     lhs.selfadjointView<Eigen::Lower>().rankUpdate(row, w[i]);
     rhs.noalias() -= (w[i] * residual) * row;
+    if (tangential_weight > 0.0) {
+      // d(R x + t)/d(omega, t) = [-[xc]x  I]; project residual and Jacobian onto the tangent plane.
+      const Eigen::Matrix3d tangent = Eigen::Matrix3d::Identity() - n[i] * n[i].transpose();
+      Eigen::Matrix<double, 3, 6> jacobian;
+      jacobian.leftCols<3>() << 0.0, xc.z(), -xc.y(), -xc.z(), 0.0, xc.x(), xc.y(), -xc.x(), 0.0;
+      jacobian.rightCols<3>().setIdentity();
+      const Eigen::Matrix<double, 3, 6> projected = tangent * jacobian;
+      const double weight = w[i] * tangential_weight;
+      lhs.noalias() += weight * (projected.transpose() * projected);
+      rhs.noalias() -= weight * (projected.transpose() * (tangent * (x[i] - y[i])));
+    }
   }
   const Matrix6 full = lhs.selfadjointView<Eigen::Lower>();
   const Eigen::LDLT<Matrix6> ldlt(full);

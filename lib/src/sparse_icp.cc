@@ -158,7 +158,7 @@ RigidTransform SparseIcpSolver::RunAdmm(std::span<const std::uint8_t> active,
 RigidTransform SparseIcpSolver::StepPointToPlane(std::span<const std::uint8_t> active) {
   // Fit n . (R x + t - q) = z - c / mu.
   return RunAdmm<PointToPlaneMetric>(active, multiplier1_, z1_, u1_, [&] {
-    return PointToPlaneMotion(xs_, qs_, ns_, u1_, weight_);
+    return PointToPlaneMotion(xs_, qs_, ns_, u1_, weight_, options_.tangential_weight);
   });
 }
 

@@ -98,6 +98,48 @@ TEST(RigidMotionTest, PointToPlaneConvergesToExactTransform) {
   EXPECT_NEAR(total.linear().determinant(), 1.0, 1e-12);
 }
 
+TEST(RigidMotionTest, TangentialDampingPinsSlidingAndKeepsTheNormalFit) {
+  // Points 0.5 above the plane z = 0 and 0.1 off their foot points along x. The planes alone
+  // leave x/y sliding and the rotation about z free; the damping term fixes them: the step is
+  // exactly the translation (-0.1, 0, -0.5) that zeroes both residuals.
+  std::vector<Vec3> x, y, n;
+  std::mt19937_64 rng(8);
+  std::uniform_real_distribution<double> coordinate(-1.0, 1.0);
+  for (int i = 0; i < 100; ++i) {
+    y.emplace_back(coordinate(rng), coordinate(rng), 0.0);
+    x.push_back(y.back() + Vec3(0.1, 0.0, 0.5));
+    n.emplace_back(0.0, 0.0, 1.0);
+  }
+  const std::vector<double> u(x.size(), 0.0), w(x.size(), 1.0);
+  const RigidTransform step = PointToPlaneMotion(x, y, n, u, w, /*tangential_weight=*/1.0);
+  EXPECT_TRUE(step.linear().isApprox(Eigen::Matrix3d::Identity(), 1e-12));
+  EXPECT_TRUE(step.translation().isApprox(Vec3(-0.1, 0.0, -0.5), 1e-12));
+}
+
+TEST(RigidMotionTest, TangentialDampingLeavesExactFootPointFitsAlone) {
+  // Foot-point correspondences (x - y along n): the damped step still converges to the truth.
+  const std::vector<Vec3> x0 = RandomPoints(200, 9);
+  RigidTransform truth = RigidTransform::Identity();
+  truth.linear() = ExpSo3(Vec3(0.03, 0.02, -0.04));
+  truth.translation() = Vec3(-0.02, 0.04, 0.01);
+  std::vector<Vec3> y, n;
+  std::mt19937_64 rng(10);
+  std::normal_distribution<double> g;
+  for (const Vec3& p : x0) {
+    y.push_back(truth * p);
+    n.push_back(Vec3(g(rng), g(rng), g(rng)).normalized());
+  }
+  const std::vector<double> u(x0.size(), 0.0), w(x0.size(), 1.0);
+  std::vector<Vec3> x = x0;
+  RigidTransform total = RigidTransform::Identity();
+  for (int it = 0; it < 20; ++it) {
+    const RigidTransform step = PointToPlaneMotion(x, y, n, u, w, 1.0);
+    for (Vec3& p : x) p = step * p;
+    total = step * total;
+  }
+  EXPECT_TRUE(total.matrix().isApprox(truth.matrix(), 1e-9));
+}
+
 TEST(SparseIcpSolverTest, RobustToGrossOutliers) {
   // Fixed correspondences, 30 % of them gross outliers: the lp (p = 0.5) ADMM still recovers the
   // transform that least squares would miss.

@@ -31,6 +31,10 @@ class CorrespondenceFinder {
   // threshold, then calls Refine() and continues with the finer correspondences.
   virtual bool can_refine() const { return false; }
   virtual void Refine() {}
+  // Whether partners are foot points along the surface normal that slide with their query (MLS),
+  // rather than fixed target samples or points along a viewing ray. The point-to-plane step then
+  // damps sliding (RegistrationOptions::tangential_damping).
+  virtual bool foot_points() const { return false; }
 };
 
 }  // namespace mlsreg

@@ -38,6 +38,7 @@ class MlsCorrespondenceFinder final : public CorrespondenceFinder {
   void Find(std::span<const Vec3> queries, std::span<Correspondence> out) override;
   bool oriented_normals() const override { return oriented_; }
   bool can_refine() const override { return far_queries_ == FarQueryPolicy::kSeedUntilConverged; }
+  bool foot_points() const override { return true; }
   void Refine() override;
 
   // Status of each sample's last projection (for statistics and tests).

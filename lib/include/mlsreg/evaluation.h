@@ -37,8 +37,9 @@ struct ProblemOutcome {
   absl::Status status;  // load or registration failure; the fields below are then unset
   Matrix4 initial = Matrix4::Identity();
   RegistrationResult result;
-  PoseError initial_error;  // of the start pose, against ground truth
-  PoseError error;          // of the result, against ground truth
+  PoseError initial_error;            // of the start pose, against ground truth
+  PoseError error;                    // of the result, against ground truth
+  std::vector<double> trace_error_d;  // RMSE/d against ground truth after each iteration
   double target_build_seconds = 0.0;
 };
 

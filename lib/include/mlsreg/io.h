@@ -1,4 +1,4 @@
-// Reading and writing point clouds: PLY, PCD and XYZ/CSV files.
+// Reading and writing point clouds: PLY, PCD, XYZ/CSV and NumPy .npy files.
 //
 // Readers never trust a file. Every successful parse returns a cloud that passes
 // ValidatePointCloud(cloud, 1): at least one point, all coordinates finite, and either no normals
@@ -35,6 +35,9 @@
 //        too): "x y z" or "x y z nx ny nz", the same count on every line. Blank lines and lines
 //        starting with '#' are skipped; a first line with no numeric field is a header and is
 //        skipped (e.g. "x,y,z").
+//   NPY  A NumPy array file (format 1.0, 2.0 or 3.0) holding a C-order float64 or float32 array of
+//        shape (N, 3) or (N, 6) (x y z, or x y z nx ny nz), either byte order. Written as
+//        little-endian float64, shape (N, 3) or (N, 6).
 #pragma once
 
 #include <string>
@@ -53,6 +56,7 @@ enum class PcdEncoding { kAscii, kBinary };
 absl::StatusOr<PointCloud> ParsePly(std::string_view bytes);
 absl::StatusOr<PointCloud> ParsePcd(std::string_view bytes);
 absl::StatusOr<PointCloud> ParseXyz(std::string_view bytes);  // also CSV
+absl::StatusOr<PointCloud> ParseNpy(std::string_view bytes);
 
 // Serialise a cloud. Coordinates and normals are written as doubles (binary float64, or text with
 // 17 significant digits), so parsing the result gives back the same values bit for bit. The cloud
@@ -65,9 +69,10 @@ absl::StatusOr<PointCloud> ParseXyz(std::string_view bytes);  // also CSV
 std::string SerializePly(const PointCloud& cloud, PlyEncoding encoding);
 std::string SerializePcd(const PointCloud& cloud, PcdEncoding encoding);
 std::string SerializeXyz(const PointCloud& cloud);
+std::string SerializeNpy(const PointCloud& cloud);
 
-// Reads a file, choosing the format by extension (case-insensitive): .ply, .pcd, .xyz/.txt/.csv.
-// Errors: unknown or missing extension -> InvalidArgument naming it; file does not exist ->
+// Reads a file, choosing the format by extension (case-insensitive): .ply, .pcd, .xyz/.txt/.csv,
+// .npy. Errors: unknown or missing extension -> InvalidArgument naming it; file does not exist ->
 // NotFound; cannot be read -> Unavailable (both naming the path); a parse error keeps its code and
 // its message is prefixed with "<path>: ".
 absl::StatusOr<PointCloud> ReadPointCloud(const std::string& path);

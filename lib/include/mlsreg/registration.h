@@ -80,6 +80,16 @@ struct RegistrationOptions {
   // The same for the coarse phase of coarse-to-fine correspondences (MLS far-query seeding),
   // which only has to bring the source within reach of the MLS support.
   double coarse_convergence_d = 0.1;
+  // Also converged when the last 8 poses all lie within stall_d * d of the current one (no sample
+  // farther): on noisy data hard filters can flip a few correspondences back and forth forever,
+  // leaving the pose jittering by a fraction of d. 0 disables.
+  double stall_d = 0.05;
+  // Point-to-plane with foot-point partners (MLS): weight of a term that damps each sample's
+  // sliding along the tangent plane of its partner within one ICP iteration. Planes alone
+  // constrain sliding only through curvature; on noisy data the fitted normals then steer the
+  // pose in a new direction every iteration and it never settles. Chosen on the tuning split
+  // (docs/evaluation.md). 0 disables (the paper's plain point-to-plane step).
+  double tangential_damping = 1.0;
   // Sparse ICP runs on coordinates divided by this length (see SparseIcpOptions::length_unit);
   // its stop threshold is convergence_d in the same units. With mu = 10, alpha = 1.2 and 10
   // ADMM iterations, residuals beyond ~0.32 units start as outliers and beyond ~0.11 units end

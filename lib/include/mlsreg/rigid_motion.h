@@ -25,8 +25,13 @@ RigidTransform PointToPointMotion(std::span<const Vec3> x, std::span<const Vec3>
 // One Gauss-Newton step of argmin_{R,t} sum_i w_i (n_i . (R x_i + t - y_i) - u_i)^2, linearised
 // in the rotation about the weighted centroid of x, with the rotation rebuilt by the exact SO(3)
 // exponential. Identity when the system is singular or the total weight is zero.
+//
+// With tangential_weight = lambda > 0 the objective gains lambda * |P_i (R x_i + t - y_i)|^2,
+// P_i = I - n_i n_i^T: the part of each residual along the tangent plane. For correspondences
+// that are foot points on a smooth surface (MLS), that part starts near zero, so the term only
+// damps sliding along the surface, which the planes alone constrain through curvature.
 RigidTransform PointToPlaneMotion(std::span<const Vec3> x, std::span<const Vec3> y,
                                   std::span<const Vec3> n, std::span<const double> u,
-                                  std::span<const double> w);
+                                  std::span<const double> w, double tangential_weight = 0.0);
 
 }  // namespace mlsreg

@@ -28,6 +28,9 @@ struct SparseIcpOptions {
   // next although the correspondences (and so the constraints) change. That winds up on noisy
   // data (the pose keeps wandering); mlsreg resets them by default. true reproduces the reference.
   bool keep_multipliers = false;
+  // Point-to-plane only: weight of the tangential damping term of PointToPlaneMotion. Set for
+  // MLS correspondences (see RegistrationOptions::mls_tangential_weight); 0 elsewhere.
+  double tangential_weight = 0.0;
   // Coordinates are divided by this length before the ADMM, which is therefore scale-free:
   // the shrinkage threshold of the lp prox depends on mu and on the length scale.
   double length_unit = 1.0;
@@ -43,6 +46,7 @@ double LpShrinkWeight(double h_norm, double mu, double p);
 class SparseIcpSolver {
  public:
   explicit SparseIcpSolver(const SparseIcpOptions& options) : options_(options) {}
+  void set_tangential_weight(double weight) { options_.tangential_weight = weight; }
 
   // Forget the Lagrange multipliers (a new registration with `samples` source samples).
   void Reset(std::size_t samples);
