@@ -11,7 +11,7 @@
 # pose = the scanner's motion only, as in the paper), the real sets (seeded 10 deg / 10 d start
 # perturbation) and the filter ablation; plot. Environment: BUILD_DIR (build), OUT (results
 # folder, default $BUILD_DIR/evaluation), JOBS (parallel registrations, default all cores),
-# EVAL_MESHES (default "bunny camel cow fandisk"), SHARED (default ../shared).
+# EVAL_MESHES (default "bunny camel cow fandisk triceratops"), SHARED (default ../shared).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
@@ -19,7 +19,7 @@ BUILD_DIR=${BUILD_DIR:-build}
 OUT=${OUT:-$BUILD_DIR/evaluation}
 JOBS=${JOBS:-$(nproc)}
 SHARED=${SHARED:-../shared}
-EVAL_MESHES=${EVAL_MESHES:-bunny camel cow fandisk}
+EVAL_MESHES=${EVAL_MESHES:-bunny camel cow fandisk triceratops}
 MLSREG=$BUILD_DIR/mlsreg
 SCAN=$BUILD_DIR/tools/scan/mlsreg-scan
 PYTHON=/usr/bin/python3  # Debian's, which has matplotlib

@@ -343,7 +343,8 @@ RegistrationResult RunSparseIcp(const Target& target, const PointCloud& source,
 }
 
 // ST-SICP's target: every target sample projected onto the target's own MLS surface (de-noised;
-// samples whose projection fails keep their position), prepared like any target.
+// samples whose projection fails keep their position), prepared like any target but keeping the
+// original surface variation for the curvature filter (see Target::WithMovedPoints).
 absl::StatusOr<std::shared_ptr<const Target>> SmoothedTarget(const Target& target,
                                                              const RegistrationOptions& options) {
   MlsOptions mls;
@@ -352,14 +353,13 @@ absl::StatusOr<std::shared_ptr<const Target>> SmoothedTarget(const Target& targe
   mls.max_iterations = options.mls.max_iterations;
   const MlsProjector projector(target.points(), target.tree(), mls);
   MlsProjector::Workspace workspace;
-  PointCloud smoothed;
-  smoothed.viewpoint = target.cloud().viewpoint;
-  smoothed.points.reserve(target.points().size());
+  std::vector<Vec3> smoothed;
+  smoothed.reserve(target.points().size());
   for (const Vec3& p : target.points()) {
     const MlsProjection projection = projector.Project(p, workspace);
-    smoothed.points.push_back(projection.status == ProjectionStatus::kOk ? projection.point : p);
+    smoothed.push_back(projection.status == ProjectionStatus::kOk ? projection.point : p);
   }
-  return Target::Build(std::move(smoothed), target.options());
+  return target.WithMovedPoints(std::move(smoothed));
 }
 
 // Adds a later phase's result to an earlier one's: one trace, summed phase timings.

@@ -9,6 +9,27 @@ namespace mlsreg {
 
 absl::StatusOr<std::shared_ptr<const Target>> Target::Build(PointCloud cloud,
                                                             const TargetOptions& options) {
+  absl::StatusOr<std::shared_ptr<Target>> target = BuildMutable(std::move(cloud), options);
+  if (!target.ok()) return target.status();
+  return std::shared_ptr<const Target>(*std::move(target));
+}
+
+absl::StatusOr<std::shared_ptr<const Target>> Target::WithMovedPoints(
+    std::vector<Vec3> points) const {
+  if (points.size() != cloud_.points.size()) {
+    return absl::InvalidArgumentError("WithMovedPoints: the point count must not change");
+  }
+  PointCloud moved = cloud_;
+  moved.points = std::move(points);
+  moved.normals.clear();
+  absl::StatusOr<std::shared_ptr<Target>> target = BuildMutable(std::move(moved), options_);
+  if (!target.ok()) return target.status();
+  (*target)->surface_.curvature = surface_.curvature;
+  return std::shared_ptr<const Target>(*std::move(target));
+}
+
+absl::StatusOr<std::shared_ptr<Target>> Target::BuildMutable(PointCloud cloud,
+                                                             const TargetOptions& options) {
   if (absl::Status s = ValidatePointCloud(cloud, options.min_points); !s.ok()) return s;
   if (!(options.analysis_radius_d > 0.0)) {
     return absl::InvalidArgumentError("analysis_radius_d must be positive");
@@ -32,7 +53,7 @@ absl::StatusOr<std::shared_ptr<const Target>> Target::Build(PointCloud cloud,
   }
   target->build_seconds_ =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return std::shared_ptr<const Target>(std::move(target));
+  return target;
 }
 
 std::size_t Target::MemoryBytes() const {

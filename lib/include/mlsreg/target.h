@@ -26,6 +26,12 @@ class Target {
   static absl::StatusOr<std::shared_ptr<const Target>> Build(PointCloud cloud,
                                                              const TargetOptions& options = {});
 
+  // This target with its points moved (same count and order; ST-SICP's smoothed copy): index,
+  // d, normals and depth grid are rebuilt, the surface variation is kept from this target.
+  // Smoothing flattens surface variation, so rebuilt values would set the curvature filter
+  // against every noisy source.
+  absl::StatusOr<std::shared_ptr<const Target>> WithMovedPoints(std::vector<Vec3> points) const;
+
   const PointCloud& cloud() const { return cloud_; }
   const std::vector<Vec3>& points() const { return cloud_.points; }
   const KdTree& tree() const { return *tree_; }
@@ -41,6 +47,8 @@ class Target {
 
  private:
   Target() = default;
+  static absl::StatusOr<std::shared_ptr<Target>> BuildMutable(PointCloud cloud,
+                                                              const TargetOptions& options);
   PointCloud cloud_;
   std::unique_ptr<KdTree> tree_;
   SurfaceProperties surface_;
