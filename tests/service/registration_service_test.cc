@@ -202,6 +202,16 @@ TEST_F(RegistrationServiceTest, BadRequestsNameTheFieldWhileAGoodOneRuns) {
     EXPECT_STATUS(run(m), grpc::StatusCode::INVALID_ARGUMENT, "parameters.mls.radius_d");
     ++bad;
   }
+  {  // the damping and stall stop travel too, and are validated
+    auto m = valid;
+    m[0].mutable_header()->mutable_parameters()->set_tangential_damping(-1.0);
+    EXPECT_STATUS(run(m), grpc::StatusCode::INVALID_ARGUMENT, "parameters.tangential_damping");
+    ++bad;
+    m = valid;
+    m[0].mutable_header()->mutable_parameters()->set_stall_d(1e9);
+    EXPECT_STATUS(run(m), grpc::StatusCode::INVALID_ARGUMENT, "parameters.stall_d");
+    ++bad;
+  }
   {  // non-rigid initial transform (scaled)
     Matrix4 scaled = start;
     scaled.topLeftCorner<3, 3>() *= 2.0;
