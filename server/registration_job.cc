@@ -25,6 +25,23 @@ bool RegistrationJob::ShouldStop() {
   return true;
 }
 
+absl::Status RegistrationJob::StoppedStatus(int iterations) const {
+  const std::string when = iterations == 0
+                               ? std::string("before it started")
+                               : absl::StrCat("after ", iterations, " iterations");
+  switch (stop_cause()) {
+    case StopCause::kShutdown:
+      return absl::UnavailableError(
+          absl::StrCat("server shutting down: registration stopped ", when,
+                       "; retry on another server"));
+    case StopCause::kDeadline:
+      return absl::DeadlineExceededError(
+          absl::StrCat("deadline exceeded: registration stopped ", when));
+    default:
+      return absl::CancelledError(absl::StrCat("registration cancelled ", when));
+  }
+}
+
 void RegistrationJob::Publish(const IterationReport& report) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -47,7 +64,7 @@ void RegistrationJob::Run() {
   const double queue_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - admitted_).count();
   if (ShouldStop()) {  // cancelled, timed out or shut down while queued: do not start
-    Finish(absl::CancelledError("registration stopped before it started"));
+    Finish(StoppedStatus(0));
     return;
   }
   // Held until Run returns: the target cannot be evicted under a running registration.

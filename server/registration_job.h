@@ -65,6 +65,9 @@ class RegistrationJob {
   // Valid once an Update said done.
   const absl::StatusOr<RegistrationOutcome>& outcome() const { return outcome_; }
   StopCause stop_cause() const { return stop_cause_.load(); }
+  // The status a stopped registration ends with, by cause: a shutdown is UNAVAILABLE (the
+  // client may retry elsewhere), a deadline DEADLINE_EXCEEDED, a client's cancel CANCELLED.
+  absl::Status StoppedStatus(int iterations) const;
   const std::string& target_id() const { return input_.target_id; }
 
  private:

@@ -169,17 +169,7 @@ class RegisterHandler {
         "iterations=%d termination=%s queue_ms=%.1f", result.iterations,
         std::string(TerminationName(result.termination)), outcome->queue_seconds * 1e3));
     if (result.termination == Termination::kCancelled) {
-      switch (job.stop_cause()) {
-        case StopCause::kShutdown:
-          return absl::UnavailableError(
-              absl::StrCat("server shutting down: registration stopped after ", result.iterations,
-                           " iterations; retry on another server"));
-        case StopCause::kDeadline:
-          return absl::DeadlineExceededError(absl::StrCat(
-              "deadline exceeded: registration stopped after ", result.iterations, " iterations"));
-        default:
-          return absl::CancelledError("registration cancelled");
-      }
+      return job.StoppedStatus(result.iterations);
     }
     v1::RegisterResponse response;
     v1::Result* out = response.mutable_result();

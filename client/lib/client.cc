@@ -468,6 +468,13 @@ absl::StatusOr<RemoteRegistrationResult> Client::Register(
         const grpc::Status status = stream->Finish();
         done = true;
         if (watcher.joinable()) watcher.join();
+        if (status.error_code() == grpc::StatusCode::CANCELLED && !(cancel && cancel->load())) {
+          // This caller did not cancel: the server dropped the call (a replica that shuts down
+          // cancels calls it has not started yet). A registration changes nothing on the
+          // server, so it is retried like UNAVAILABLE, on the next replica.
+          return absl::UnavailableError(
+              absl::StrCat("the server cancelled the call: ", status.error_message()));
+        }
         if (!status.ok()) return wire::ToAbslStatus(status);
         if (!have_result)
           return absl::DataLossError("the server ended the stream without a result");

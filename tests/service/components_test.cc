@@ -9,6 +9,7 @@
 
 #include "server/auth.h"
 #include "server/job_pool.h"
+#include "server/registration_job.h"
 #include "server/server_config.h"
 #include "server/target_cache.h"
 #include "support/synthetic.h"
@@ -125,6 +126,42 @@ TEST(JobPoolTest, AdmitsOneRunningAndCapacityQueuedJobsThenRefuses) {
   pool.Shutdown();  // drains: the queued job runs too
   EXPECT_EQ(started.load(), 2);
   EXPECT_EQ(pool.TrySubmit([] {}).status().code(), absl::StatusCode::kUnavailable);
+}
+
+// ---------------------------------------------------------------------------- registration job
+
+// A job still queued when the drain time runs out never starts, and says why in a way the client
+// can act on: a shutdown is UNAVAILABLE (retry on another replica), not CANCELLED.
+TEST(RegistrationJobTest, JobStoppedBeforeItStartsReportsItsCause) {
+  auto target = Target::Build(testing::SamplePlaneGrid(1.0, 0.05, 0.01, 1));
+  ASSERT_TRUE(target.ok()) << target.status();
+  auto make_input = [&] {
+    RegistrationInput input;
+    input.target_id = "plane";
+    input.target = *target;
+    input.source = testing::SamplePlaneGrid(1.0, 0.05, 0.01, 2);
+    return input;
+  };
+  std::atomic<bool> stop{true};
+  RegistrationJob shut_down(make_input(), /*cache=*/nullptr, &stop);
+  shut_down.Run();
+  EXPECT_EQ(shut_down.stop_cause(), StopCause::kShutdown);
+  EXPECT_EQ(shut_down.outcome().status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_EQ(shut_down.outcome().status().message(),
+            "server shutting down: registration stopped before it started; retry on another "
+            "server");
+
+  stop.store(false);
+  RegistrationJob cancelled(make_input(), nullptr, &stop);
+  cancelled.Cancel();
+  cancelled.Run();
+  EXPECT_EQ(cancelled.outcome().status().code(), absl::StatusCode::kCancelled);
+
+  RegistrationInput late = make_input();
+  late.deadline = std::chrono::system_clock::now() - std::chrono::seconds(1);
+  RegistrationJob expired(std::move(late), nullptr, &stop);
+  expired.Run();
+  EXPECT_EQ(expired.outcome().status().code(), absl::StatusCode::kDeadlineExceeded);
 }
 
 // ---------------------------------------------------------------------------- auth
