@@ -26,14 +26,12 @@ bool RegistrationJob::ShouldStop() {
 }
 
 absl::Status RegistrationJob::StoppedStatus(int iterations) const {
-  const std::string when = iterations == 0
-                               ? std::string("before it started")
-                               : absl::StrCat("after ", iterations, " iterations");
+  const std::string when = iterations == 0 ? std::string("before it started")
+                                           : absl::StrCat("after ", iterations, " iterations");
   switch (stop_cause()) {
     case StopCause::kShutdown:
-      return absl::UnavailableError(
-          absl::StrCat("server shutting down: registration stopped ", when,
-                       "; retry on another server"));
+      return absl::UnavailableError(absl::StrCat("server shutting down: registration stopped ",
+                                                 when, "; retry on another server"));
     case StopCause::kDeadline:
       return absl::DeadlineExceededError(
           absl::StrCat("deadline exceeded: registration stopped ", when));
