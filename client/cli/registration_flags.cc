@@ -41,6 +41,8 @@ void RegistrationFlags::AddTo(CLI::App& app, bool method_flag) {
   app.add_option("--tau-h", options_.filter.min_curvature_ratio,
                  "curvature filter: min H1/H2 ratio (0 disables)")
       ->capture_default_str();
+  app.add_flag("--coarse-filter", options_.filter.in_coarse_phase,
+               "apply the normal and curvature filters in the MLS coarse phase too");
   app.add_option("--max-distance", options_.filter.max_distance_d,
                  "reject correspondences farther than this (units of d; 0 disables)")
       ->capture_default_str();

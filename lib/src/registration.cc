@@ -253,7 +253,13 @@ RegistrationResult RunSparseIcp(const Target& target, const PointCloud& source,
   }
   filter_options.source_oriented = samples.surface.oriented;
   filter_options.target_oriented = finder->oriented_normals();
-  const CorrespondenceFilter filter(filter_options);
+  const CorrespondenceFilter fine_filter(filter_options);
+  CorrespondenceFilterOptions coarse_options = filter_options;
+  if (!options.filter.in_coarse_phase) {
+    coarse_options.min_normal_dot = -1.0;
+    coarse_options.min_curvature_ratio = 0.0;
+  }
+  const CorrespondenceFilter coarse_filter(coarse_options);
 
   SparseIcpOptions sicp = options.sicp;
   sicp.length_unit = options.sicp_length_unit_d * d;
@@ -291,6 +297,7 @@ RegistrationResult RunSparseIcp(const Target& target, const PointCloud& source,
     finder->Find(moved, correspondences);
     IterationReport report;
     report.iteration = iteration_offset + iteration;
+    const CorrespondenceFilter& filter = finder->can_refine() ? coarse_filter : fine_filter;
     report.counts = filter.Apply(moved, moved_normals, samples.surface.curvature,
                                  samples.surface.valid, correspondences, accepted);
     double sum_squared = 0.0;

@@ -296,6 +296,7 @@ absl::StatusOr<RegistrationOptions> OptionsFromProto(v1::Method method,
   if (p.has_coarse_convergence_d()) o.coarse_convergence_d = p.coarse_convergence_d();
   if (p.has_stall_d()) o.stall_d = p.stall_d();
   if (p.has_tangential_damping()) o.tangential_damping = p.tangential_damping();
+  if (p.has_filter_in_coarse_phase()) o.filter.in_coarse_phase = p.filter_in_coarse_phase();
   if (p.has_mls_radius_d()) o.mls.radius_d = p.mls_radius_d();
   if (p.has_mls_polynomial_degree()) o.mls.polynomial_degree = p.mls_polynomial_degree();
   if (p.has_mls_max_iterations()) o.mls.max_iterations = p.mls_max_iterations();
@@ -357,6 +358,7 @@ void OptionsToProto(const RegistrationOptions& o, v1::Method* method,
   p->set_coarse_convergence_d(o.coarse_convergence_d);
   p->set_stall_d(o.stall_d);
   p->set_tangential_damping(o.tangential_damping);
+  p->set_filter_in_coarse_phase(o.filter.in_coarse_phase);
   p->set_mls_radius_d(o.mls.radius_d);
   p->set_mls_polynomial_degree(o.mls.polynomial_degree);
   p->set_mls_max_iterations(o.mls.max_iterations);

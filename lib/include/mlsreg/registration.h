@@ -68,6 +68,14 @@ struct FilterParams {
   double min_normal_dot = 0.7;        // tau_N; <= -1 disables
   double min_curvature_ratio = 0.75;  // tau_H; 0 disables
   double max_distance_d = 0.0;        // 0 disables
+  // Also apply tau_N and tau_H in the coarse phase of coarse-to-fine correspondences (MLS far-
+  // query seeding). Far from the solution most partners disagree in normal or curvature only
+  // because they are far, and the few that pass both tests are a biased handful (on a 30-degree
+  // start often 12 % of the samples, and the pose wanders off). By default the coarse phase is
+  // unfiltered and the filters engage once the source is within reach of the MLS support, as in
+  // the paper's two-phase CP-SICP+MLS-SICP; chosen on the tuning split (docs/evaluation.md).
+  // max_distance_d applies in both phases.
+  bool in_coarse_phase = false;
 };
 
 struct RegistrationOptions {
