@@ -41,8 +41,9 @@ void RegistrationFlags::AddTo(CLI::App& app, bool method_flag) {
   app.add_option("--tau-h", options_.filter.min_curvature_ratio,
                  "curvature filter: min H1/H2 ratio (0 disables)")
       ->capture_default_str();
-  app.add_flag("--coarse-filter", options_.filter.in_coarse_phase,
-               "apply the normal and curvature filters in the MLS coarse phase too");
+  app.add_option("--coarse-filters", coarse_filters_,
+                 "filters of the MLS coarse phase: normal (tau-n only) | all | none")
+      ->capture_default_str();
   app.add_option("--max-distance", options_.filter.max_distance_d,
                  "reject correspondences farther than this (units of d; 0 disables)")
       ->capture_default_str();
@@ -89,6 +90,10 @@ absl::StatusOr<RegistrationOptions> RegistrationFlags::ToOptions() const {
     return absl::InvalidArgumentError(
         "mls-far-queries: must be seed-until-converged, seed or drop");
   }
+  auto coarse = ParseCoarsePhaseFilters(coarse_filters_);
+  if (!coarse.ok())
+    return absl::InvalidArgumentError("coarse-filters: must be normal, all or none");
+  options.filter.coarse_phase = *coarse;
   if (absl::Status s = ValidateOptions(options); !s.ok()) return s;
   return options;
 }

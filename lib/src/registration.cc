@@ -53,6 +53,27 @@ absl::StatusOr<Method> ParseMethod(std::string_view name) {
                                     "' (known: " + known + ")");
 }
 
+std::string_view CoarsePhaseFiltersName(CoarsePhaseFilters filters) {
+  switch (filters) {
+    case CoarsePhaseFilters::kNone:
+      return "none";
+    case CoarsePhaseFilters::kNormal:
+      return "normal";
+    case CoarsePhaseFilters::kAll:
+      return "all";
+  }
+  return "unknown";
+}
+
+absl::StatusOr<CoarsePhaseFilters> ParseCoarsePhaseFilters(std::string_view name) {
+  for (CoarsePhaseFilters f :
+       {CoarsePhaseFilters::kNone, CoarsePhaseFilters::kNormal, CoarsePhaseFilters::kAll}) {
+    if (name == CoarsePhaseFiltersName(f)) return f;
+  }
+  return absl::InvalidArgumentError("filter.coarse_phase: unknown value '" + std::string(name) +
+                                    "' (known: normal, all, none)");
+}
+
 std::string_view TerminationName(Termination termination) {
   switch (termination) {
     case Termination::kConverged:
@@ -255,9 +276,11 @@ RegistrationResult RunSparseIcp(const Target& target, const PointCloud& source,
   filter_options.target_oriented = finder->oriented_normals();
   const CorrespondenceFilter fine_filter(filter_options);
   CorrespondenceFilterOptions coarse_options = filter_options;
-  if (!options.filter.in_coarse_phase) {
-    coarse_options.min_normal_dot = -1.0;
+  if (options.filter.coarse_phase != CoarsePhaseFilters::kAll) {
     coarse_options.min_curvature_ratio = 0.0;
+  }
+  if (options.filter.coarse_phase == CoarsePhaseFilters::kNone) {
+    coarse_options.min_normal_dot = -1.0;
   }
   const CorrespondenceFilter coarse_filter(coarse_options);
 

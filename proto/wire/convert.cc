@@ -296,7 +296,22 @@ absl::StatusOr<RegistrationOptions> OptionsFromProto(v1::Method method,
   if (p.has_coarse_convergence_d()) o.coarse_convergence_d = p.coarse_convergence_d();
   if (p.has_stall_d()) o.stall_d = p.stall_d();
   if (p.has_tangential_damping()) o.tangential_damping = p.tangential_damping();
-  if (p.has_filter_in_coarse_phase()) o.filter.in_coarse_phase = p.filter_in_coarse_phase();
+  switch (p.coarse_phase_filters()) {
+    case v1::COARSE_PHASE_FILTERS_UNSPECIFIED:
+    case v1::COARSE_PHASE_FILTERS_NORMAL:
+      o.filter.coarse_phase = CoarsePhaseFilters::kNormal;
+      break;
+    case v1::COARSE_PHASE_FILTERS_ALL:
+      o.filter.coarse_phase = CoarsePhaseFilters::kAll;
+      break;
+    case v1::COARSE_PHASE_FILTERS_NONE:
+      o.filter.coarse_phase = CoarsePhaseFilters::kNone;
+      break;
+    default:
+      return absl::InvalidArgumentError(
+          absl::StrCat("parameters.coarse_phase_filters: unknown value ",
+                       static_cast<int>(p.coarse_phase_filters())));
+  }
   if (p.has_mls_radius_d()) o.mls.radius_d = p.mls_radius_d();
   if (p.has_mls_polynomial_degree()) o.mls.polynomial_degree = p.mls_polynomial_degree();
   if (p.has_mls_max_iterations()) o.mls.max_iterations = p.mls_max_iterations();
@@ -358,7 +373,17 @@ void OptionsToProto(const RegistrationOptions& o, v1::Method* method,
   p->set_coarse_convergence_d(o.coarse_convergence_d);
   p->set_stall_d(o.stall_d);
   p->set_tangential_damping(o.tangential_damping);
-  p->set_filter_in_coarse_phase(o.filter.in_coarse_phase);
+  switch (o.filter.coarse_phase) {
+    case CoarsePhaseFilters::kNormal:
+      p->set_coarse_phase_filters(v1::COARSE_PHASE_FILTERS_NORMAL);
+      break;
+    case CoarsePhaseFilters::kAll:
+      p->set_coarse_phase_filters(v1::COARSE_PHASE_FILTERS_ALL);
+      break;
+    case CoarsePhaseFilters::kNone:
+      p->set_coarse_phase_filters(v1::COARSE_PHASE_FILTERS_NONE);
+      break;
+  }
   p->set_mls_radius_d(o.mls.radius_d);
   p->set_mls_polynomial_degree(o.mls.polynomial_degree);
   p->set_mls_max_iterations(o.mls.max_iterations);

@@ -211,6 +211,11 @@ TEST_F(RegistrationServiceTest, BadRequestsNameTheFieldWhileAGoodOneRuns) {
     m[0].mutable_header()->mutable_parameters()->set_stall_d(1e9);
     EXPECT_STATUS(run(m), grpc::StatusCode::INVALID_ARGUMENT, "parameters.stall_d");
     ++bad;
+    m = valid;
+    m[0].mutable_header()->mutable_parameters()->set_coarse_phase_filters(
+        static_cast<v1::CoarsePhaseFilters>(42));
+    EXPECT_STATUS(run(m), grpc::StatusCode::INVALID_ARGUMENT, "parameters.coarse_phase_filters");
+    ++bad;
   }
   {  // non-rigid initial transform (scaled)
     Matrix4 scaled = start;

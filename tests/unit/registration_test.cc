@@ -143,9 +143,10 @@ TEST(RegistrationTest, MlsBeatsClosestPointOnNoisySamples) {
   EXPECT_LT(mls_error, cp_error);
 }
 
-TEST(RegistrationTest, FiltersEngageAfterTheCoarsePhaseUnlessAskedEarlier) {
-  // A noisy pair 10 degrees off: the fine phase rejects by normal and curvature; the coarse phase
-  // (far queries seeded from samples) only when filter.in_coarse_phase is set.
+TEST(RegistrationTest, CoarsePhaseFiltersFollowTheirPolicy) {
+  // A noisy pair 10 degrees off. The fine phase rejects by normal and by curvature; the coarse
+  // phase (far queries seeded from samples) by normal only by default, by both with kAll, by
+  // neither with kNone.
   const SyntheticPair pair = MakePair(2.0);
   const double d = pair.target->sampling_distance();
   auto noisy_target = Target::Build(SampleBumpySurface(20000, -1.0, 1.0, 1, 2.0 * d));
@@ -153,27 +154,31 @@ TEST(RegistrationTest, FiltersEngageAfterTheCoarsePhaseUnlessAskedEarlier) {
   const Matrix4 initial = RandomPerturbation(10.0, 10.0 * d, Vec3::Zero(), 6) * pair.truth;
   RegistrationOptions options;
   options.mls.radius_d = 8.0;
-  auto rejected = [](const IterationReport& r) {
-    return r.counts.rejected_normal + r.counts.rejected_curvature;
+  auto run = [&] {
+    auto r = Register(**noisy_target, pair.source, initial, options);
+    EXPECT_TRUE(r.ok()) << r.status();
+    EXPECT_GE(r->trace.size(), 2u);
+    return *std::move(r);
   };
-  auto deferred = Register(**noisy_target, pair.source, initial, options);
-  ASSERT_TRUE(deferred.ok()) << deferred.status();
-  ASSERT_GE(deferred->trace.size(), 2u);
-  EXPECT_EQ(rejected(deferred->trace.front()), 0);
-  EXPECT_GT(rejected(deferred->trace.back()), 0);
-  EXPECT_LT(EvaluatePose(pair.source.points, deferred->transform, pair.truth, d).rmse_d, 1.0);
+  const RegistrationResult normal = run();
+  EXPECT_GT(normal.trace.front().counts.rejected_normal, 0);
+  EXPECT_EQ(normal.trace.front().counts.rejected_curvature, 0);
+  EXPECT_GT(normal.trace.back().counts.rejected_curvature, 0);
+  EXPECT_LT(EvaluatePose(pair.source.points, normal.transform, pair.truth, d).rmse_d, 1.0);
 
-  options.filter.in_coarse_phase = true;
-  auto early = Register(**noisy_target, pair.source, initial, options);
-  ASSERT_TRUE(early.ok()) << early.status();
-  EXPECT_GT(rejected(early->trace.front()), 0);
+  options.filter.coarse_phase = CoarsePhaseFilters::kAll;
+  EXPECT_GT(run().trace.front().counts.rejected_curvature, 0);
 
-  // Without a coarse phase (paper Algorithm 1: far queries dropped) the filters act throughout.
-  options.filter.in_coarse_phase = false;
+  options.filter.coarse_phase = CoarsePhaseFilters::kNone;
+  const RegistrationResult none = run();
+  EXPECT_EQ(none.trace.front().counts.rejected_normal, 0);
+  EXPECT_EQ(none.trace.front().counts.rejected_curvature, 0);
+  EXPECT_GT(none.trace.back().counts.rejected_curvature, 0);
+
+  // Without a coarse phase (paper Algorithm 1: far queries dropped) both act throughout.
+  options.filter.coarse_phase = CoarsePhaseFilters::kNone;
   options.mls.far_queries = FarQueryPolicy::kDrop;
-  auto strict = Register(**noisy_target, pair.source, initial, options);
-  ASSERT_TRUE(strict.ok()) << strict.status();
-  EXPECT_GT(rejected(strict->trace.front()), 0);
+  EXPECT_GT(run().trace.front().counts.rejected_curvature, 0);
 }
 
 TEST(RegistrationTest, ObserverSeesEveryIterationAndCancelStopsWithinOne) {

@@ -64,18 +64,28 @@ struct FgrParams {
   int samples = 3000;  // random samples of each cloud that get features
 };
 
+// The filters of the coarse phase (MLS far queries seeded from target samples). Far from the
+// solution most partners differ in surface variation only because they are far: the ratio test
+// compares a neighbourhood of the source with one of a seeded partner that may lie on another
+// part of the surface. From the paper's 30-degree virtual-scan starts the two filters together
+// kept as few as 12 % of the samples and the pose wandered off. The normal test stays
+// meaningful at any distance and keeps wall-to-floor style matches out of scenes.
+// kNormal was chosen on the tuning split (docs/evaluation.md).
+enum class CoarsePhaseFilters {
+  kNone,    // unfiltered coarse phase
+  kNormal,  // tau_N only
+  kAll,     // tau_N and tau_H from the first iteration, as in the paper
+};
+std::string_view CoarsePhaseFiltersName(CoarsePhaseFilters filters);  // "none", "normal", "all"
+absl::StatusOr<CoarsePhaseFilters> ParseCoarsePhaseFilters(std::string_view name);
+
 struct FilterParams {
   double min_normal_dot = 0.7;        // tau_N; <= -1 disables
   double min_curvature_ratio = 0.75;  // tau_H; 0 disables
   double max_distance_d = 0.0;        // 0 disables
-  // Also apply tau_N and tau_H in the coarse phase of coarse-to-fine correspondences (MLS far-
-  // query seeding). Far from the solution most partners disagree in normal or curvature only
-  // because they are far, and the few that pass both tests are a biased handful (on a 30-degree
-  // start often 12 % of the samples, and the pose wanders off). By default the coarse phase is
-  // unfiltered and the filters engage once the source is within reach of the MLS support, as in
-  // the paper's two-phase CP-SICP+MLS-SICP; chosen on the tuning split (docs/evaluation.md).
-  // max_distance_d applies in both phases.
-  bool in_coarse_phase = false;
+  // Which of tau_N and tau_H act in the coarse phase of coarse-to-fine correspondences (see
+  // CoarsePhaseFilters); both always act afterwards. max_distance_d applies in both phases.
+  CoarsePhaseFilters coarse_phase = CoarsePhaseFilters::kNormal;
 };
 
 struct RegistrationOptions {
