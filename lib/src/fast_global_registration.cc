@@ -182,7 +182,7 @@ RegistrationResult RunFastGlobalRegistration(const Target& target, const PointCl
         ++report.counts.rejected_distance;
       }
     }
-    const Vector6 delta = h.ldlt().solve(-g);
+    const Vector6 delta = SolveConstrainedStep(h, -g);
     if (delta.allFinite()) normalised = TwistIncrement(delta) * normalised;
     internal::SetRmse(report, sum_squared, d);
     result.iterations = iteration;

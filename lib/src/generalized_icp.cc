@@ -136,7 +136,7 @@ RegistrationResult RunGeneralizedIcp(const Target& target, const PointCloud& sou
     bool converged = false;
     if (report.counts.matched >= options.min_correspondences) {
       phase = Clock::now();
-      const Vector6 delta = h.ldlt().solve(-g);
+      const Vector6 delta = SolveConstrainedStep(h, -g);
       if (delta.allFinite()) {
         const RigidTransform step = TwistIncrement(delta);
         double max_move = 0.0;

@@ -1,6 +1,6 @@
 #include "mlsreg/rigid_motion.h"
 
-#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 #include <cmath>
 
@@ -54,6 +54,24 @@ RigidTransform PointToPointMotion(std::span<const Vec3> x, std::span<const Vec3>
   return result;
 }
 
+Eigen::Matrix<double, 6, 1> SolveConstrainedStep(const Eigen::Matrix<double, 6, 6>& h,
+                                                 const Eigen::Matrix<double, 6, 1>& rhs) {
+  using Vector6 = Eigen::Matrix<double, 6, 1>;
+  constexpr double kRelativeRank = 1e-9;  // far above round-off (1e-16), far below real data
+  Vector6 step = Vector6::Zero();
+  if (!h.allFinite() || !rhs.allFinite()) return step;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eigen(h);
+  if (eigen.info() != Eigen::Success) return step;
+  const Vector6& values = eigen.eigenvalues();  // ascending
+  if (!(values[5] > 0.0)) return step;
+  for (int k = 0; k < 6; ++k) {
+    if (values[k] <= kRelativeRank * values[5]) continue;
+    const auto direction = eigen.eigenvectors().col(k);
+    step.noalias() += (direction.dot(rhs) / values[k]) * direction;
+  }
+  return step;
+}
+
 RigidTransform PointToPlaneMotion(std::span<const Vec3> x, std::span<const Vec3> y,
                                   std::span<const Vec3> n, std::span<const double> u,
                                   std::span<const double> w, double tangential_weight) {
@@ -86,10 +104,7 @@ RigidTransform PointToPlaneMotion(std::span<const Vec3> x, std::span<const Vec3>
     }
   }
   const Matrix6 full = lhs.selfadjointView<Eigen::Lower>();
-  const Eigen::LDLT<Matrix6> ldlt(full);
-  if (ldlt.info() != Eigen::Success) return result;
-  const Vector6 step = ldlt.solve(rhs);
-  if (!step.allFinite()) return result;
+  const Vector6 step = SolveConstrainedStep(full, rhs);
   // x' = R (x - mean) + mean + t
   const Eigen::Matrix3d rotation = ExpSo3(step.head<3>());
   result.linear() = rotation;

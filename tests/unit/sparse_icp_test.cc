@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "mlsreg/rigid_motion.h"
@@ -114,6 +115,53 @@ TEST(RigidMotionTest, TangentialDampingPinsSlidingAndKeepsTheNormalFit) {
   const RigidTransform step = PointToPlaneMotion(x, y, n, u, w, /*tangential_weight=*/1.0);
   EXPECT_TRUE(step.linear().isApprox(Eigen::Matrix3d::Identity(), 1e-12));
   EXPECT_TRUE(step.translation().isApprox(Vec3(-0.1, 0.0, -0.5), 1e-12));
+}
+
+TEST(RigidMotionTest, CorrespondencesOnOnePlaneMoveOnlyAlongTheNormal) {
+  // Every partner on the plane z = 0 with normal z, points tilted slightly and 0.5 above: the
+  // planes constrain the z translation and the tilts about x and y, nothing else. The step must
+  // level and lower the points without sliding them (a plain LDLT solve of the rank-3 system
+  // returned in-plane translations of ~1e10 on real data).
+  std::vector<Vec3> x, y, n;
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> coordinate(-1.0, 1.0);
+  // The whole scene is turned off the axes, so the free directions carry round-off (~1e-16)
+  // instead of exact zeros, as on real data.
+  const Eigen::Matrix3d tilt = ExpSo3(Vec3(0.01, -0.02, 0.0));
+  const Eigen::Matrix3d turn = ExpSo3(Vec3(0.7, -0.4, 1.1));
+  for (int i = 0; i < 100; ++i) {
+    const Vec3 on_plane(coordinate(rng), coordinate(rng), 0.0);
+    y.push_back(turn * on_plane);
+    x.push_back(turn * (tilt * on_plane + Vec3(0.0, 0.0, 0.5)));
+    n.push_back(turn * Vec3::UnitZ());
+  }
+  const std::vector<double> u(x.size(), 0.0), w(x.size(), 1.0);
+  const RigidTransform step = PointToPlaneMotion(x, y, n, u, w);
+  ASSERT_TRUE(step.matrix().allFinite());
+  double worst_height = 0.0, worst_slide = 0.0;
+  for (const Vec3& p : x) {
+    const Vec3 moved = turn.transpose() * (step * p), before = turn.transpose() * p;
+    worst_height = std::max(worst_height, std::abs(moved.z()));
+    // In-plane motion is only what leveling the tilt implies (second order in 0.02).
+    worst_slide = std::max(worst_slide, (moved - before).head<2>().norm());
+  }
+  EXPECT_LT(worst_height, 1e-3);
+  EXPECT_LT(worst_slide, 0.02);
+}
+
+TEST(RigidMotionTest, ConstrainedStepIgnoresUnconstrainedDirections) {
+  using Matrix6 = Eigen::Matrix<double, 6, 6>;
+  using Vector6 = Eigen::Matrix<double, 6, 1>;
+  Matrix6 h = Matrix6::Zero();
+  h.diagonal() << 2.0, 4.0, 1e-17, 0.0, 0.0, 8.0;
+  Vector6 rhs;
+  rhs << 2.0, 4.0, 1.0, 1.0, 1.0, 8.0;
+  Vector6 expected;
+  expected << 1.0, 1.0, 0.0, 0.0, 0.0, 1.0;
+  EXPECT_TRUE(SolveConstrainedStep(h, rhs).isApprox(expected, 1e-12));
+  EXPECT_TRUE(SolveConstrainedStep(Matrix6::Zero(), rhs).isZero());
+  h(0, 0) = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_TRUE(SolveConstrainedStep(h, rhs).isZero());
 }
 
 TEST(RigidMotionTest, TangentialDampingLeavesExactFootPointFitsAlone) {

@@ -17,6 +17,14 @@ Eigen::Matrix3d ExpSo3(const Vec3& omega);
 // exact SO(3) exponential.
 RigidTransform TwistIncrement(const Eigen::Matrix<double, 6, 1>& omega_v);
 
+// Solves the 6x6 normal equations h * step = rhs of a Gauss-Newton step over (omega, v), moving
+// only along directions the data constrain: eigen-directions of h whose eigenvalue is at most
+// 1e-9 of the largest get no motion (e.g. the in-plane translations and the rotation about the
+// normal when every correspondence lies on one plane, where a plain LDLT solve returns steps of
+// 1e10 units). Zero when h is zero or not finite.
+Eigen::Matrix<double, 6, 1> SolveConstrainedStep(const Eigen::Matrix<double, 6, 6>& h,
+                                                 const Eigen::Matrix<double, 6, 1>& rhs);
+
 // argmin_{R,t} sum_i w_i |R x_i + t - y_i|^2 (weighted Kabsch/Umeyama, det-corrected).
 // Entries with w_i = 0 are ignored; identity when the total weight is zero.
 RigidTransform PointToPointMotion(std::span<const Vec3> x, std::span<const Vec3> y,
