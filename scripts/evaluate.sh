@@ -36,23 +36,9 @@ mkdir -p "$OUT"
 meshes_dir=$BUILD_DIR/eval-meshes
 mkdir -p "$meshes_dir"
 bunny_mesh=$SHARED/data/real/stanford_bunny/reconstruction/bun_zipper.ply
-need_cgal=0
-for m in $EVAL_MESHES; do
-  if [ "$m" != bunny ] && [ ! -f "$meshes_dir/$m.off" ]; then need_cgal=1; fi
-done
-if [ $need_cgal = 1 ]; then
-  echo "== fetching libcgal-demo (CGAL's example meshes) with apt-get download"
-  tmp=$(mktemp -d)
-  (cd "$tmp" && { apt-get download libcgal-demo 2>/dev/null || { apt-get update -qq && apt-get download libcgal-demo; }; })
-  dpkg-deb --fsys-tarfile "$tmp"/libcgal-demo_*.deb |
-    tar -x -C "$tmp" ./usr/share/doc/libcgal-dev/data.tar.gz
-  for m in $EVAL_MESHES; do
-    [ "$m" = bunny ] && continue
-    tar -xzf "$tmp/usr/share/doc/libcgal-dev/data.tar.gz" -C "$tmp" "data/meshes/$m.off"
-    cp "$tmp/data/meshes/$m.off" "$meshes_dir/$m.off"
-  done
-  rm -rf "$tmp"
-fi
+cgal_meshes=()
+for m in $EVAL_MESHES; do [ "$m" = bunny ] || cgal_meshes+=("$m"); done
+[ ${#cgal_meshes[@]} -eq 0 ] || bash scripts/fetch-cgal-meshes.sh "$meshes_dir" "${cgal_meshes[@]}"
 
 # ---- virtual scans ------------------------------------------------------------------------------
 t=$(now)

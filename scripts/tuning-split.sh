@@ -27,21 +27,9 @@ while [ $# -gt 0 ]; do
 done
 
 meshes_dir=$BUILD_DIR/eval-meshes
-mkdir -p "$meshes_dir" "$OUT"
-missing=()
-for m in $TUNING_MESHES; do [ -f "$meshes_dir/$m.off" ] || missing+=("$m"); done
-if [ ${#missing[@]} -gt 0 ]; then
-  echo "== fetching libcgal-demo (CGAL's example meshes) with apt-get download"
-  tmp=$(mktemp -d)
-  (cd "$tmp" && { apt-get download libcgal-demo 2>/dev/null || { apt-get update -qq && apt-get download libcgal-demo; }; })
-  dpkg-deb --fsys-tarfile "$tmp"/libcgal-demo_*.deb |
-    tar -x -C "$tmp" ./usr/share/doc/libcgal-dev/data.tar.gz
-  for m in "${missing[@]}"; do
-    tar -xzf "$tmp/usr/share/doc/libcgal-dev/data.tar.gz" -C "$tmp" "data/meshes/$m.off"
-    cp "$tmp/data/meshes/$m.off" "$meshes_dir/$m.off"
-  done
-  rm -rf "$tmp"
-fi
+mkdir -p "$OUT"
+# shellcheck disable=SC2086
+bash scripts/fetch-cgal-meshes.sh "$meshes_dir" $TUNING_MESHES
 
 if [ ! -f "$OUT/scans/.done" ]; then
   scan_args=()
