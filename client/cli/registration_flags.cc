@@ -42,7 +42,7 @@ void RegistrationFlags::AddTo(CLI::App& app, bool method_flag) {
                  "curvature filter: min H1/H2 ratio (0 disables)")
       ->capture_default_str();
   app.add_option("--coarse-filters", coarse_filters_,
-                 "filters of the MLS coarse phase: normal (tau-n only) | all | none")
+                 "filters of the MLS coarse phase: all | normal (tau-n only) | none")
       ->capture_default_str();
   app.add_option("--max-distance", options_.filter.max_distance_d,
                  "reject correspondences farther than this (units of d; 0 disables)")
@@ -92,7 +92,7 @@ absl::StatusOr<RegistrationOptions> RegistrationFlags::ToOptions() const {
   }
   auto coarse = ParseCoarsePhaseFilters(coarse_filters_);
   if (!coarse.ok())
-    return absl::InvalidArgumentError("coarse-filters: must be normal, all or none");
+    return absl::InvalidArgumentError("coarse-filters: must be all, normal or none");
   options.filter.coarse_phase = *coarse;
   if (absl::Status s = ValidateOptions(options); !s.ok()) return s;
   return options;

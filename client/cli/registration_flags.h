@@ -22,7 +22,7 @@ class RegistrationFlags {
   std::string method_ = "mls-sicp";
   std::string metric_ = "point-to-plane";
   std::string far_queries_ = "seed-until-converged";
-  std::string coarse_filters_ = "normal";
+  std::string coarse_filters_ = "all";
 };
 
 }  // namespace mlsreg::cli

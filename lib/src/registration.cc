@@ -71,7 +71,7 @@ absl::StatusOr<CoarsePhaseFilters> ParseCoarsePhaseFilters(std::string_view name
     if (name == CoarsePhaseFiltersName(f)) return f;
   }
   return absl::InvalidArgumentError("filter.coarse_phase: unknown value '" + std::string(name) +
-                                    "' (known: normal, all, none)");
+                                    "' (known: all, normal, none)");
 }
 
 std::string_view TerminationName(Termination termination) {

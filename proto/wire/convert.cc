@@ -297,10 +297,10 @@ absl::StatusOr<RegistrationOptions> OptionsFromProto(v1::Method method,
   if (p.has_stall_d()) o.stall_d = p.stall_d();
   if (p.has_tangential_damping()) o.tangential_damping = p.tangential_damping();
   switch (p.coarse_phase_filters()) {
-    case v1::COARSE_PHASE_FILTERS_UNSPECIFIED:
     case v1::COARSE_PHASE_FILTERS_NORMAL:
       o.filter.coarse_phase = CoarsePhaseFilters::kNormal;
       break;
+    case v1::COARSE_PHASE_FILTERS_UNSPECIFIED:
     case v1::COARSE_PHASE_FILTERS_ALL:
       o.filter.coarse_phase = CoarsePhaseFilters::kAll;
       break;
