@@ -32,7 +32,8 @@ RigidTransform PointToPointMotion(std::span<const Vec3> x, std::span<const Vec3>
 
 // One Gauss-Newton step of argmin_{R,t} sum_i w_i (n_i . (R x_i + t - y_i) - u_i)^2, linearised
 // in the rotation about the weighted centroid of x, with the rotation rebuilt by the exact SO(3)
-// exponential. Identity when the system is singular or the total weight is zero.
+// exponential. Directions the planes do not constrain get no motion (SolveConstrainedStep);
+// identity when the total weight is zero.
 //
 // With tangential_weight = lambda > 0 the objective gains lambda * |P_i (R x_i + t - y_i)|^2,
 // P_i = I - n_i n_i^T: the part of each residual along the tangent plane. For correspondences
