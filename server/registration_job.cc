@@ -26,7 +26,7 @@ bool RegistrationJob::ShouldStop() {
 }
 
 absl::Status RegistrationJob::StoppedStatus(int iterations) const {
-  const std::string when = iterations == 0 ? std::string("before it started")
+  const std::string when = iterations == 0 ? std::string("before its first iteration")
                                            : absl::StrCat("after ", iterations, " iterations");
   switch (stop_cause()) {
     case StopCause::kShutdown:

@@ -374,9 +374,13 @@ RegistrationResult RunSparseIcp(const Target& target, const PointCloud& source,
 
 // ST-SICP's target: every target sample projected onto the target's own MLS surface (de-noised;
 // samples whose projection fails keep their position), prepared like any target but keeping the
-// original surface variation for the curvature filter (see Target::WithMovedPoints).
-absl::StatusOr<std::shared_ptr<const Target>> SmoothedTarget(const Target& target,
-                                                             const RegistrationOptions& options) {
+// original surface variation for the curvature filter (see Target::WithMovedPoints). Asks
+// `should_stop` (may be empty) every few thousand points, since a large target takes seconds;
+// null when it said stop.
+absl::StatusOr<std::shared_ptr<const Target>> SmoothedTarget(
+    const Target& target, const RegistrationOptions& options,
+    const std::function<bool()>& should_stop) {
+  constexpr std::size_t kStopCheckInterval = 4096;
   MlsOptions mls;
   mls.radius = options.mls.radius_d * target.sampling_distance();
   mls.polynomial_degree = options.mls.polynomial_degree;
@@ -386,6 +390,9 @@ absl::StatusOr<std::shared_ptr<const Target>> SmoothedTarget(const Target& targe
   std::vector<Vec3> smoothed;
   smoothed.reserve(target.points().size());
   for (const Vec3& p : target.points()) {
+    if (should_stop && smoothed.size() % kStopCheckInterval == 0 && should_stop()) {
+      return std::shared_ptr<const Target>();
+    }
     const MlsProjection projection = projector.Project(p, workspace);
     smoothed.push_back(projection.status == ProjectionStatus::kOk ? projection.point : p);
   }
@@ -436,8 +443,15 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
       break;
     case Method::kStSicp: {
       const Clock::time_point phase = Clock::now();
-      auto smoothed = SmoothedTarget(target, options);
+      auto smoothed = SmoothedTarget(target, options, callbacks.should_stop);
       if (!smoothed.ok()) return smoothed.status();
+      if (*smoothed == nullptr) {  // cancelled while smoothing: no iteration ran
+        result.transform = Orthonormalize(initial).matrix();
+        result.termination = Termination::kCancelled;
+        result.sampling_distance = target.sampling_distance();
+        result.timings.preprocessing = Seconds(phase);
+        break;
+      }
       const double smoothing = Seconds(phase);
       result = RunSparseIcp(**smoothed, source, initial, options, callbacks, start, 0);
       result.timings.preprocessing += smoothing;

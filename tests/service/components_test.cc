@@ -148,8 +148,8 @@ TEST(RegistrationJobTest, JobStoppedBeforeItStartsReportsItsCause) {
   EXPECT_EQ(shut_down.stop_cause(), StopCause::kShutdown);
   EXPECT_EQ(shut_down.outcome().status().code(), absl::StatusCode::kUnavailable);
   EXPECT_EQ(shut_down.outcome().status().message(),
-            "server shutting down: registration stopped before it started; retry on another "
-            "server");
+            "server shutting down: registration stopped before its first iteration; retry on "
+            "another server");
 
   stop.store(false);
   RegistrationJob cancelled(make_input(), nullptr, &stop);

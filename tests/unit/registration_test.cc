@@ -204,6 +204,24 @@ TEST(RegistrationTest, ObserverSeesEveryIterationAndCancelStopsWithinOne) {
   EXPECT_EQ(result->iterations, 3);
 }
 
+TEST(RegistrationTest, StSicpCanBeCancelledWhileSmoothingTheTarget) {
+  // Smoothing the 20k-point target asks should_stop every 4096 points; the second ask says
+  // stop, so no ICP iteration runs (were it asked only per iteration, one would).
+  const SyntheticPair pair = MakePair(0.0);
+  RegistrationOptions options;
+  options.method = Method::kStSicp;
+  int asked = 0;
+  RegistrationCallbacks callbacks;
+  callbacks.should_stop = [&] { return ++asked >= 2; };
+  auto result = Register(*pair.target, pair.source, pair.truth, options, callbacks);
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_EQ(result->termination, Termination::kCancelled);
+  EXPECT_EQ(result->iterations, 0);
+  EXPECT_TRUE(result->trace.empty());
+  EXPECT_EQ(asked, 2);
+  EXPECT_TRUE(result->transform.isApprox(pair.truth, 1e-9));
+}
+
 TEST(RegistrationTest, SameInputsGiveBitIdenticalResults) {
   const SyntheticPair pair = MakePair(0.0);
   const Matrix4 initial = pair.truth;
