@@ -38,7 +38,11 @@ void MlsCorrespondenceFinder::Find(std::span<const Vec3> queries, std::span<Corr
     status_.assign(queries.size(), ProjectionStatus::kTooFewNeighbors);
   }
   last_iterations_ = 0;
+  // A projection can take thousands of neighbour visits in dense clusters: ask often.
+  constexpr std::uint32_t kStopInterval = 64;
+  StopPoller stop(should_stop_, kStopInterval);
   for (std::size_t i = 0; i < queries.size(); ++i) {
+    if (stop.Poll()) return;
     const Vec3& q = queries[i];
     MlsProjection& previous = previous_[i];
     MlsProjection projection;

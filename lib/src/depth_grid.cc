@@ -1,5 +1,6 @@
 #include "mlsreg/depth_grid.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <fstream>
@@ -20,6 +21,29 @@ absl::Status ValidateIntrinsics(const PinholeIntrinsics& k, std::string_view fie
   }
   if (!std::isfinite(k.cx) || !std::isfinite(k.cy)) {
     return absl::InvalidArgumentError(f + ": principal point cx, cy must be finite");
+  }
+  return absl::OkStatus();
+}
+
+std::uint64_t MaxGridPixels(std::uint64_t point_count) {
+  return std::max(kMinGridPixelCap, kMaxGridPixelsPerPoint * point_count);
+}
+
+std::uint64_t GridBytes(const PinholeIntrinsics& k) {
+  if (k.width <= 0 || k.height <= 0) return 0;
+  return static_cast<std::uint64_t>(k.width) * static_cast<std::uint64_t>(k.height) *
+         sizeof(std::int32_t);
+}
+
+absl::Status ValidateIntrinsicsFor(const PinholeIntrinsics& k, std::uint64_t point_count,
+                                   std::string_view field) {
+  if (absl::Status s = ValidateIntrinsics(k, field); !s.ok()) return s;
+  const std::uint64_t pixels = static_cast<std::uint64_t>(k.width) * k.height;
+  if (pixels > MaxGridPixels(point_count)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        std::string(field), ": a ", k.width, " x ", k.height, " image (", pixels,
+        " pixels) is too large for ", point_count, " points (at most ", MaxGridPixels(point_count),
+        " pixels: ", kMaxGridPixelsPerPoint, " per point, or ", kMinGridPixelCap, ")"));
   }
   return absl::OkStatus();
 }
@@ -71,7 +95,9 @@ bool DepthGrid::Project(const Vec3& p, double& u, double& v) const {
 
 absl::StatusOr<DepthGrid> DepthGrid::Build(const std::vector<Vec3>& points,
                                            const PinholeIntrinsics& intrinsics) {
-  if (absl::Status s = ValidateIntrinsics(intrinsics, "intrinsics"); !s.ok()) return s;
+  if (absl::Status s = ValidateIntrinsicsFor(intrinsics, points.size(), "intrinsics"); !s.ok()) {
+    return s;
+  }
   DepthGrid grid;
   grid.k_ = intrinsics;
   grid.pixels_.assign(static_cast<std::size_t>(intrinsics.width) * intrinsics.height, -1);

@@ -29,13 +29,19 @@ struct FeaturedSamples {
   std::vector<FpfhFeature> features;
 };
 
+// `stopped` is set when `should_stop` said stop (the samples are then unusable).
 FeaturedSamples Describe(const PointCloud& cloud, const KdTree& tree, double normal_radius,
-                         double feature_radius, int count, std::uint64_t seed) {
+                         double feature_radius, int count, std::uint64_t seed,
+                         const StopCheck& should_stop, bool& stopped) {
   FeaturedSamples out;
   const std::vector<std::uint32_t> indices =
       RandomSubsample(cloud.size(), static_cast<std::size_t>(count), seed);
   const SurfaceProperties surface =
-      AnalyzeSurface(cloud.points, tree, normal_radius, cloud.viewpoint, indices);
+      AnalyzeSurface(cloud.points, tree, normal_radius, cloud.viewpoint, indices, should_stop);
+  if (surface.stopped) {
+    stopped = true;
+    return out;
+  }
   std::vector<Vec3> normals;
   for (std::size_t k = 0; k < indices.size(); ++k) {
     if (!surface.valid[k]) continue;
@@ -43,7 +49,8 @@ FeaturedSamples Describe(const PointCloud& cloud, const KdTree& tree, double nor
     normals.push_back(surface.normals[k]);
   }
   const KdTree sample_tree(out.points);
-  out.features = ComputeFpfh(out.points, normals, sample_tree, feature_radius);
+  out.features = ComputeFpfh(out.points, normals, sample_tree, feature_radius, should_stop);
+  stopped = out.features.size() != out.points.size();
   return out;
 }
 
@@ -79,24 +86,35 @@ RegistrationResult RunFastGlobalRegistration(const Target& target, const PointCl
   Clock::time_point phase = Clock::now();
   const KdTree source_tree(source.points);
   const double normal_radius = target.options().analysis_radius_d * d;
-  const FeaturedSamples s =
-      Describe(source, source_tree, normal_radius, p.feature_radius_d * d, p.samples, options.seed);
-  const FeaturedSamples t = Describe(target.cloud(), target.tree(), normal_radius,
-                                     p.feature_radius_d * d, p.samples, options.seed + 1);
+  bool stopped = false;
+  const FeaturedSamples s = Describe(source, source_tree, normal_radius, p.feature_radius_d * d,
+                                     p.samples, options.seed, callbacks.should_stop, stopped);
+  const FeaturedSamples t =
+      stopped ? FeaturedSamples{}
+              : Describe(target.cloud(), target.tree(), normal_radius, p.feature_radius_d * d,
+                         p.samples, options.seed + 1, callbacks.should_stop, stopped);
   result.num_samples = static_cast<int>(s.points.size());
   result.timings.preprocessing = Seconds(phase);
 
   // Matching: mutual nearest neighbours in feature space, then the tuple test.
   phase = Clock::now();
   std::vector<std::pair<std::size_t, std::size_t>> mutual;
-  if (!s.points.empty() && !t.points.empty()) {
+  if (!stopped && !s.points.empty() && !t.points.empty()) {
+    StopPoller stop(callbacks.should_stop, 16);  // each row is a pass over all features
     std::vector<std::size_t> t_to_s(t.points.size());
-    for (std::size_t j = 0; j < t.points.size(); ++j)
+    for (std::size_t j = 0; j < t.points.size() && !stop.Poll(); ++j)
       t_to_s[j] = NearestFeature(t.features[j], s.features);
-    for (std::size_t i = 0; i < s.points.size(); ++i) {
+    for (std::size_t i = 0; i < s.points.size() && !stop.Poll(); ++i) {
       const std::size_t j = NearestFeature(s.features[i], t.features);
       if (t_to_s[j] == i) mutual.emplace_back(i, j);
     }
+    stopped = stop.stopped();
+  }
+  if (stopped) {
+    result.transform = Matrix4::Identity();
+    result.termination = Termination::kCancelled;
+    result.timings.total = Seconds(start);
+    return result;
   }
   std::vector<std::pair<std::size_t, std::size_t>> corr;
   std::mt19937_64 rng(options.seed);

@@ -56,15 +56,17 @@ void NormalizeBlocks(FpfhFeature& h) {
 
 std::vector<FpfhFeature> ComputeFpfh(const std::vector<Vec3>& points,
                                      const std::vector<Vec3>& normals, const KdTree& tree,
-                                     double radius) {
+                                     double radius, const StopCheck& should_stop) {
   const std::size_t n = points.size();
   std::vector<FpfhFeature> spfh(n), fpfh(n);
-  std::vector<RadiusNeighbors> neighborhoods(n);
+  RadiusNeighbors neighbors;
+  StopPoller stop(should_stop);
   for (std::size_t i = 0; i < n; ++i) {
-    tree.Radius(points[i], radius, neighborhoods[i]);
+    if (stop.Poll()) return {};
+    tree.Radius(points[i], radius, neighbors, kMaxFpfhNeighbors);
     FpfhFeature& h = spfh[i];
     h.fill(0.0f);
-    for (const auto& [j, d2] : neighborhoods[i]) {
+    for (const auto& [j, d2] : neighbors) {
       if (j == i) continue;
       double f1, f2, f3;
       if (!PairFeatures(points[i], normals[i], points[j], normals[j], f1, f2, f3)) continue;
@@ -75,11 +77,13 @@ std::vector<FpfhFeature> ComputeFpfh(const std::vector<Vec3>& points,
     NormalizeBlocks(h);
   }
   for (std::size_t i = 0; i < n; ++i) {
+    if (stop.Poll()) return {};
+    tree.Radius(points[i], radius, neighbors, kMaxFpfhNeighbors);
     FpfhFeature& h = fpfh[i];
     h = spfh[i];
     int k = 0;
     FpfhFeature weighted{};
-    for (const auto& [j, d2] : neighborhoods[i]) {
+    for (const auto& [j, d2] : neighbors) {
       if (j == i || d2 <= 0.0) continue;
       // 1/distance as in Rusu 2009, with distances in units of the radius (scale-free).
       const float weight = static_cast<float>(radius / std::sqrt(d2));

@@ -34,4 +34,16 @@ absl::Status ValidatePointCloud(const PointCloud& cloud, std::size_t min_points)
   return absl::OkStatus();
 }
 
+absl::Status CheckCoordinateRange(const PointCloud& cloud) {
+  for (std::size_t i = 0; i < cloud.points.size(); ++i) {
+    const double magnitude = cloud.points[i].cwiseAbs().maxCoeff();
+    if (magnitude > kMaxAbsCoordinate) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "point ", i, " has a coordinate of magnitude ", magnitude, ", beyond the limit of ",
+          kMaxAbsCoordinate, " for registration (squared distances would overflow)"));
+    }
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace mlsreg

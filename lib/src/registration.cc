@@ -92,8 +92,8 @@ absl::Status ValidateOptions(const RegistrationOptions& o) {
   auto bad = [](const char* field, const char* rule) {
     return absl::InvalidArgumentError(absl::StrCat(field, " ", rule));
   };
-  if (o.num_samples < 3 || o.num_samples > 10'000'000) {
-    return bad("num_samples", "must be in [3, 10000000]");
+  if (o.num_samples < 3 || o.num_samples > kMaxNumSamples) {
+    return bad("num_samples", "must be in [3, 1000000]");
   }
   if (o.max_iterations < 1 || o.max_iterations > 100'000) {
     return bad("max_iterations", "must be in [1, 100000]");
@@ -139,11 +139,11 @@ absl::Status ValidateOptions(const RegistrationOptions& o) {
   if (!(o.gicp.max_distance_d > 0.0 && o.gicp.max_distance_d <= 1e6)) {
     return bad("gicp.max_distance_d", "must be in (0, 1e6]");
   }
-  if (!(o.fgr.feature_radius_d > 0.0 && o.fgr.feature_radius_d <= 1000.0)) {
-    return bad("fgr.feature_radius_d", "must be in (0, 1000]");
+  if (!(o.fgr.feature_radius_d > 0.0 && o.fgr.feature_radius_d <= kMaxFgrFeatureRadiusD)) {
+    return bad("fgr.feature_radius_d", "must be in (0, 100]");
   }
-  if (o.fgr.samples < 10 || o.fgr.samples > 20000) {
-    return bad("fgr.samples", "must be in [10, 20000]");
+  if (o.fgr.samples < 10 || o.fgr.samples > kMaxFgrSamples) {
+    return bad("fgr.samples", "must be in [10, 10000]");
   }
   SparseIcpOptions sicp = o.sicp;
   sicp.length_unit = 1.0;  // derived; validated above
@@ -262,10 +262,18 @@ RegistrationResult RunSparseIcp(const Target& target, const PointCloud& source,
   const KdTree source_tree(source.points);
   samples.surface =
       AnalyzeSurface(source.points, source_tree, AnalysisRadius(options.method, target, options),
-                     source.viewpoint, indices);
+                     source.viewpoint, indices, callbacks.should_stop);
   result.timings.preprocessing = Seconds(phase);
+  RigidTransform transform(Orthonormalize(initial));
+  if (samples.surface.stopped) {
+    result.termination = Termination::kCancelled;
+    result.transform = transform.matrix();
+    result.timings.total = Seconds(start);
+    return result;
+  }
 
   std::unique_ptr<CorrespondenceFinder> finder = MakeFinder(options.method, target, options);
+  finder->set_should_stop(callbacks.should_stop);
   CorrespondenceFilterOptions filter_options;
   filter_options.min_normal_dot = options.filter.min_normal_dot;
   filter_options.min_curvature_ratio = options.filter.min_curvature_ratio;
@@ -302,7 +310,6 @@ RegistrationResult RunSparseIcp(const Target& target, const PointCloud& source,
   std::vector<std::uint8_t> accepted(m);
   solver.Reset(m);
 
-  RigidTransform transform(Orthonormalize(initial));
   // Poses after the most recent iterations of the current phase, newest first.
   std::vector<RigidTransform> recent_poses;
   recent_poses.reserve(kCycleMemory + 1);
@@ -318,6 +325,10 @@ RegistrationResult RunSparseIcp(const Target& target, const PointCloud& source,
       moved_normals[i] = transform.linear() * samples.surface.normals[i];
     }
     finder->Find(moved, correspondences);
+    if (callbacks.should_stop && callbacks.should_stop()) {  // Find may have stopped part-way
+      result.termination = Termination::kCancelled;
+      break;
+    }
     IterationReport report;
     report.iteration = iteration_offset + iteration;
     const CorrespondenceFilter& filter = finder->can_refine() ? coarse_filter : fine_filter;
@@ -380,7 +391,6 @@ RegistrationResult RunSparseIcp(const Target& target, const PointCloud& source,
 absl::StatusOr<std::shared_ptr<const Target>> SmoothedTarget(
     const Target& target, const RegistrationOptions& options,
     const std::function<bool()>& should_stop) {
-  constexpr std::size_t kStopCheckInterval = 4096;
   MlsOptions mls;
   mls.radius = options.mls.radius_d * target.sampling_distance();
   mls.polynomial_degree = options.mls.polynomial_degree;
@@ -389,10 +399,9 @@ absl::StatusOr<std::shared_ptr<const Target>> SmoothedTarget(
   MlsProjector::Workspace workspace;
   std::vector<Vec3> smoothed;
   smoothed.reserve(target.points().size());
+  StopPoller stop(should_stop, 64);
   for (const Vec3& p : target.points()) {
-    if (should_stop && smoothed.size() % kStopCheckInterval == 0 && should_stop()) {
-      return std::shared_ptr<const Target>();
-    }
+    if (stop.Poll()) return std::shared_ptr<const Target>();
     const MlsProjection projection = projector.Project(p, workspace);
     smoothed.push_back(projection.status == ProjectionStatus::kOk ? projection.point : p);
   }
@@ -421,6 +430,9 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
   const Clock::time_point start = Clock::now();
   if (absl::Status s = ValidateOptions(options); !s.ok()) return s;
   if (absl::Status s = ValidatePointCloud(source, 3); !s.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat("source: ", s.message()));
+  }
+  if (absl::Status s = CheckCoordinateRange(source); !s.ok()) {
     return absl::InvalidArgumentError(absl::StrCat("source: ", s.message()));
   }
   if (absl::Status s = CheckRigid(initial, "initial_transform"); !s.ok()) return s;

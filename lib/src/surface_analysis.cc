@@ -9,7 +9,8 @@ namespace mlsreg {
 
 SurfaceProperties AnalyzeSurface(const std::vector<Vec3>& points, const KdTree& tree, double radius,
                                  const std::optional<Vec3>& viewpoint,
-                                 std::span<const std::uint32_t> indices) {
+                                 std::span<const std::uint32_t> indices,
+                                 const StopCheck& should_stop) {
   const std::size_t n = indices.empty() ? points.size() : indices.size();
   SurfaceProperties out;
   out.normals.assign(n, Vec3::Zero());
@@ -18,7 +19,12 @@ SurfaceProperties AnalyzeSurface(const std::vector<Vec3>& points, const KdTree& 
   out.oriented = viewpoint.has_value();
 
   RadiusNeighbors neighbors;
+  StopPoller stop(should_stop);
   for (std::size_t i = 0; i < n; ++i) {
+    if (stop.Poll()) {
+      out.stopped = true;
+      return out;
+    }
     const Vec3& p = points[indices.empty() ? i : indices[i]];
     tree.Radius(p, radius, neighbors);
     WeightedCovariance fit(p);

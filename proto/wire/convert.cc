@@ -58,9 +58,9 @@ absl::StatusOr<std::uint64_t> CheckCloudHeader(const v1::CloudHeader& header,
   }
   if (header.has_intrinsics()) {
     const v1::PinholeIntrinsics& k = header.intrinsics();
-    if (absl::Status s = ValidateIntrinsics(
+    if (absl::Status s = ValidateIntrinsicsFor(
             PinholeIntrinsics{k.width(), k.height(), k.fx(), k.fy(), k.cx(), k.cy()},
-            f + ".intrinsics");
+            header.point_count(), f + ".intrinsics");
         !s.ok()) {
       return s;
     }

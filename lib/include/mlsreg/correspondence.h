@@ -6,6 +6,7 @@
 #include <string_view>
 
 #include "mlsreg/point_cloud.h"
+#include "mlsreg/stop_check.h"
 
 namespace mlsreg {
 
@@ -35,6 +36,13 @@ class CorrespondenceFinder {
   // rather than fixed target samples or points along a viewing ray. The point-to-plane step then
   // damps sliding (RegistrationOptions::tangential_damping).
   virtual bool foot_points() const { return false; }
+
+  // Finders whose queries are expensive (MLS) ask this while they search and return early, with
+  // the rest of `out` unset, once it says stop; the caller then asks it too and stops.
+  void set_should_stop(StopCheck check) { should_stop_ = std::move(check); }
+
+ protected:
+  StopCheck should_stop_;
 };
 
 }  // namespace mlsreg

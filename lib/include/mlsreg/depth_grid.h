@@ -16,6 +16,18 @@ namespace mlsreg {
 // Positive size and focal lengths, finite principal point; the message names `field`.
 absl::Status ValidateIntrinsics(const PinholeIntrinsics& k, std::string_view field);
 
+// The depth image of a cloud of n points may have at most max(kMinGridPixelCap,
+// kMaxGridPixelsPerPoint * n) pixels: a scan fills a good share of its image, and the cap keeps
+// a request of a few points from allocating a grid of gigabytes (4 bytes per pixel).
+inline constexpr std::uint64_t kMaxGridPixelsPerPoint = 64;
+inline constexpr std::uint64_t kMinGridPixelCap = std::uint64_t{1} << 16;
+std::uint64_t MaxGridPixels(std::uint64_t point_count);
+// Bytes the grid of these intrinsics takes.
+std::uint64_t GridBytes(const PinholeIntrinsics& k);
+// ValidateIntrinsics plus the pixel cap for `point_count` points (InvalidArgument naming `field`).
+absl::Status ValidateIntrinsicsFor(const PinholeIntrinsics& k, std::uint64_t point_count,
+                                   std::string_view field);
+
 // The sidecar of a scan file: `<path>.intrinsics`, a text file holding the six numbers
 // "width height fx fy cx cy" (whitespace separated; '#' starts a comment). NotFound when absent.
 absl::StatusOr<PinholeIntrinsics> ReadIntrinsicsSidecar(const std::string& scan_path);
@@ -24,7 +36,8 @@ std::string FormatIntrinsics(const PinholeIntrinsics& k);
 class DepthGrid {
  public:
   // Assigns every point with z > 0 to the pixel it projects to (the nearest point wins a pixel).
-  // InvalidArgument when the intrinsics are invalid or no point lands in the image.
+  // InvalidArgument when the intrinsics are invalid, the image exceeds MaxGridPixels or no point
+  // lands in the image.
   static absl::StatusOr<DepthGrid> Build(const std::vector<Vec3>& points,
                                          const PinholeIntrinsics& intrinsics);
 

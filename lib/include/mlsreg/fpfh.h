@@ -7,16 +7,22 @@
 
 #include "mlsreg/kd_tree.h"
 #include "mlsreg/point_cloud.h"
+#include "mlsreg/stop_check.h"
 
 namespace mlsreg {
 
 using FpfhFeature = std::array<float, 33>;
 
+// The most neighbours one feature is computed over (the nearest ones within the radius).
+inline constexpr std::size_t kMaxFpfhNeighbors = 512;
+
 // FPFH of every point of `points` (with unit `normals`, sign irrelevant) over the neighbours
-// within `radius` among the same points (`tree` indexes them). Each 11-bin block sums to 100;
-// a point without neighbours gets all zeros.
+// within `radius` among the same points (`tree` indexes them), at most kMaxFpfhNeighbors each.
+// Each 11-bin block sums to 100; a point without neighbours gets all zeros. Memory is two
+// features per point plus one neighbourhood: neighbourhoods are searched again in the second
+// pass instead of being kept. Empty when `should_stop` said stop.
 std::vector<FpfhFeature> ComputeFpfh(const std::vector<Vec3>& points,
                                      const std::vector<Vec3>& normals, const KdTree& tree,
-                                     double radius);
+                                     double radius, const StopCheck& should_stop = {});
 
 }  // namespace mlsreg

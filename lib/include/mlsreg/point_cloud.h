@@ -41,4 +41,10 @@ struct PointCloud {
 // point index.
 absl::Status ValidatePointCloud(const PointCloud& cloud, std::size_t min_points = 1);
 
+// Registration refuses coordinates beyond this magnitude (files may hold any finite value): their
+// squared distances overflow or keep no precision at any sampling distance a scan can have.
+inline constexpr double kMaxAbsCoordinate = 1e12;
+// InvalidArgument naming the first point with a coordinate beyond kMaxAbsCoordinate.
+absl::Status CheckCoordinateRange(const PointCloud& cloud);
+
 }  // namespace mlsreg

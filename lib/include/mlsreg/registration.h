@@ -120,6 +120,13 @@ struct RegistrationOptions {
   int min_correspondences = 6;  // fewer accepted correspondences end the registration
 };
 
+// Upper bounds that keep one registration's time and memory bounded by its parameters (see
+// docs/service.md, "Limits"): per-iteration work grows with the samples, FGR's feature matching
+// with samples squared.
+inline constexpr int kMaxNumSamples = 1'000'000;
+inline constexpr int kMaxFgrSamples = 10'000;
+inline constexpr double kMaxFgrFeatureRadiusD = 100.0;
+
 // Validates every field; the message names it (e.g. "mls.radius_d must be in (0, 100]").
 absl::Status ValidateOptions(const RegistrationOptions& options);
 

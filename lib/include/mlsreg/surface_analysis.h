@@ -8,6 +8,7 @@
 
 #include "mlsreg/kd_tree.h"
 #include "mlsreg/point_cloud.h"
+#include "mlsreg/stop_check.h"
 
 namespace mlsreg {
 
@@ -19,15 +20,19 @@ struct SurfaceProperties {
   std::vector<std::uint8_t> valid;
   // True when normals were oriented toward a known viewpoint, so their sign is meaningful.
   bool oriented = false;
+  // True when the analysis was stopped part-way (the caller's StopCheck): nothing is usable.
+  bool stopped = false;
 
   std::size_t size() const { return normals.size(); }
 };
 
-// Analyses `points[i]` for every i in `indices` (or every point when `indices` is empty) using all
-// neighbours within `radius`, weighted by the Wendland function. Normals point toward `viewpoint`
-// when it is given. Allocation happens once per call, not per point.
+// Analyses `points[i]` for every i in `indices` (or every point when `indices` is empty) using the
+// neighbours within `radius` (at most kMaxRadiusNeighbors, the nearest), weighted by the
+// Wendland function. Normals point toward `viewpoint` when it is given. Allocation happens once
+// per call, not per point. `should_stop` is asked every few hundred points.
 SurfaceProperties AnalyzeSurface(const std::vector<Vec3>& points, const KdTree& tree, double radius,
                                  const std::optional<Vec3>& viewpoint,
-                                 std::span<const std::uint32_t> indices = {});
+                                 std::span<const std::uint32_t> indices = {},
+                                 const StopCheck& should_stop = {});
 
 }  // namespace mlsreg

@@ -7,6 +7,7 @@
 #include "mlsreg/depth_grid.h"
 #include "mlsreg/kd_tree.h"
 #include "mlsreg/point_cloud.h"
+#include "mlsreg/stop_check.h"
 #include "mlsreg/surface_analysis.h"
 
 namespace mlsreg {
@@ -23,8 +24,10 @@ struct TargetOptions {
 // safe to share between concurrent registrations (all queries are const).
 class Target {
  public:
+  // CANCELLED when `should_stop` (asked every few hundred points) says stop.
   static absl::StatusOr<std::shared_ptr<const Target>> Build(PointCloud cloud,
-                                                             const TargetOptions& options = {});
+                                                             const TargetOptions& options = {},
+                                                             const StopCheck& should_stop = {});
 
   // This target with its points moved (same count and order; ST-SICP's smoothed copy): index,
   // d, normals and depth grid are rebuilt, the surface variation is kept from this target.
@@ -48,7 +51,8 @@ class Target {
  private:
   Target() = default;
   static absl::StatusOr<std::shared_ptr<Target>> BuildMutable(PointCloud cloud,
-                                                              const TargetOptions& options);
+                                                              const TargetOptions& options,
+                                                              const StopCheck& should_stop);
   PointCloud cloud_;
   std::unique_ptr<KdTree> tree_;
   SurfaceProperties surface_;
