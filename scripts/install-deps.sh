@@ -8,7 +8,7 @@ packages=(
   libeigen3-dev libnanoflann-dev libabsl-dev
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler grpc-proto
   libgtest-dev libgmock-dev libbenchmark-dev
-  libcli11-dev nlohmann-json3-dev libembree-dev
+  libcli11-dev nlohmann-json3-dev libembree-dev libssl-dev
   python3 python3-yaml python3-matplotlib
 )
 

@@ -31,6 +31,10 @@ absl::Status ValidateId(std::string_view id, const std::string& field, std::stri
 }  // namespace
 
 absl::Status ValidateTargetId(std::string_view id, std::string_view field) {
+  if (!id.empty() && id.front() == '.') {
+    return absl::InvalidArgumentError(
+        absl::StrCat(std::string(field), ": must not start with '.'"));
+  }
   return ValidateId(id, std::string(field), "._-", "[A-Za-z0-9._-]");
 }
 

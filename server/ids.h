@@ -9,7 +9,8 @@
 
 namespace mlsreg::server {
 
-// 1-128 characters of [A-Za-z0-9._-]; INVALID_ARGUMENT naming `field` otherwise.
+// 1-128 characters of [A-Za-z0-9._-], not starting with '.' (ids are file names in the data
+// directory); INVALID_ARGUMENT naming `field` otherwise.
 absl::Status ValidateTargetId(std::string_view id, std::string_view field);
 
 // Client-chosen request ids: 1-128 characters of [A-Za-z0-9._:-].

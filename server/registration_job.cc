@@ -40,22 +40,38 @@ absl::Status RegistrationJob::StoppedStatus(int iterations) const {
   }
 }
 
+void RegistrationJob::SetListener(std::function<void()> on_update) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  listener_ = std::move(on_update);
+}
+
+void RegistrationJob::Notify() {
+  std::function<void()> listener;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    listener = listener_;
+  }
+  changed_.notify_all();
+  if (listener) listener();
+}
+
 void RegistrationJob::Publish(const IterationReport& report) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     latest_ = report;  // latest wins: an unsent older report is simply replaced
     latest_iteration_ = report.iteration;
   }
-  changed_.notify_all();
+  Notify();
 }
 
 void RegistrationJob::Finish(absl::StatusOr<RegistrationOutcome> outcome) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (done_) return;  // the first end wins
     outcome_ = std::move(outcome);
     done_ = true;
   }
-  changed_.notify_all();
+  Notify();
 }
 
 void RegistrationJob::Run() {
@@ -68,7 +84,7 @@ void RegistrationJob::Run() {
   // Held until Run returns: the target cannot be evicted under a running registration.
   std::shared_ptr<const Target> target = std::move(input_.target);
   if (!target) {
-    auto acquired = cache_->Acquire(input_.target_id);
+    auto acquired = cache_->Acquire(input_.target_id, [this] { return ShouldStop(); });
     if (!acquired.ok()) {
       Finish(acquired.status());
       return;
@@ -98,8 +114,10 @@ void RegistrationJob::Run() {
 
 RegistrationJob::Update RegistrationJob::WaitForUpdate(std::chrono::milliseconds timeout) {
   std::unique_lock<std::mutex> lock(mutex_);
-  changed_.wait_for(lock, timeout,
-                    [this] { return done_ || latest_iteration_ > returned_iteration_; });
+  if (timeout.count() > 0) {
+    changed_.wait_for(lock, timeout,
+                      [this] { return done_ || latest_iteration_ > returned_iteration_; });
+  }
   Update update;
   if (latest_iteration_ > returned_iteration_) {
     update.progress = latest_;

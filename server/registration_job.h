@@ -8,6 +8,7 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -55,11 +56,17 @@ class RegistrationJob {
   // The client went away: the job stops at its next iteration, or never starts.
   void Cancel() { cancelled_.store(true); }
 
+  // Called (on the worker, without the job's lock) after every new report and at the end.
+  void SetListener(std::function<void()> on_update);
+  // Ends the job with `status` when it could not run to its end (the worker caught an
+  // exception, or the pool shut down before it started).
+  void Fail(absl::Status status) { Finish(std::move(status)); }
+
   struct Update {
     std::optional<IterationReport> progress;  // newer than the one returned before
     bool done = false;                        // outcome() is final
   };
-  // Blocks up to `timeout` for a newer report or the end.
+  // Blocks up to `timeout` (0: not at all) for a newer report or the end.
   Update WaitForUpdate(std::chrono::milliseconds timeout);
 
   // Valid once an Update said done.
@@ -74,6 +81,7 @@ class RegistrationJob {
   bool ShouldStop();
   void Publish(const IterationReport& report);
   void Finish(absl::StatusOr<RegistrationOutcome> outcome);
+  void Notify();
 
   RegistrationInput input_;
   TargetCache* const cache_;
@@ -89,6 +97,7 @@ class RegistrationJob {
   int returned_iteration_ = 0;  // newest iteration handed to the handler
   bool done_ = false;
   absl::StatusOr<RegistrationOutcome> outcome_ = absl::UnknownError("not finished");
+  std::function<void()> listener_;  // guarded by mutex_
 };
 
 }  // namespace mlsreg::server

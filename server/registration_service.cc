@@ -1,5 +1,12 @@
-// RegistrationService.Register: validates the whole request up front, admits it to the job
-// pool, then relays the worker's progress (latest wins) and the result to the client.
+// RegistrationService.Register on gRPC's callback API. One call, in order:
+//  1. admission (token, draining, per-peer stream limit: StreamingCall);
+//  2. the header, validated whole: ids, method, parameters, transforms, the source's declared
+//     size, the target (pinned when resident) and what the method needs of it;
+//  3. a place in the job queue and the source's in-flight bytes, reserved before any data is
+//     read, so a request that cannot run is refused before it is transferred;
+//  4. the source: inline in the header or in chunks, the buffer growing as data arrives;
+//  5. the job on a worker; its progress is relayed as the client reads (latest wins), then the
+//     result. A client that cancels, goes idle or misses its deadline cancels the job.
 #include <chrono>
 
 #include "absl/strings/str_cat.h"
@@ -7,172 +14,244 @@
 #include "grpcpp/grpcpp.h"
 #include "mlsreg/v1/mlsreg.grpc.pb.h"
 #include "mlsreg/wire/convert.h"
-#include "server/chunked_payload.h"
 #include "server/ids.h"
 #include "server/registration_job.h"
-#include "server/rpc_scope.h"
 #include "server/services.h"
+#include "server/streaming_call.h"
 
 namespace mlsreg::server {
 namespace {
 
-using RegisterStream = grpc::ServerReaderWriter<v1::RegisterResponse, v1::RegisterRequest>;
-
-// How often the handler looks at its call while the worker is silent (cancellation latency).
-constexpr std::chrono::milliseconds kPollInterval{50};
-
 // A registration needs at least this many source points (the library's own minimum).
 constexpr std::uint64_t kMinSourcePoints = 3;
 
-class RegisterHandler {
+using RegisterReactor = grpc::ServerBidiReactor<v1::RegisterRequest, v1::RegisterResponse>;
+
+class RegisterCall final : public StreamingCall<RegisterReactor> {
  public:
-  RegisterHandler(ServiceContext& c, grpc::ServerContext* ctx, RegisterStream* stream,
-                  RpcScope* scope)
-      : c_(c), ctx_(ctx), stream_(stream), scope_(scope) {}
+  RegisterCall(ServiceContext& c, grpc::CallbackServerContext* ctx)
+      : StreamingCall(c, ctx, "Register") {}
 
-  absl::Status Run() {
-    if (absl::Status s = c_.auth.Check(*ctx_, Access::kUser); !s.ok()) return s;
-    if (!c_.state.accepting()) return absl::UnavailableError("server is shutting down");
-    auto input = ReadRequest();
-    if (!input.ok()) return input.status();
-    const std::string request_id = input->request_id;
-    auto job =
-        std::make_shared<RegistrationJob>(*std::move(input), &c_.cache, &c_.state.stop_flag());
-    auto position = c_.jobs.TrySubmit([job] { job->Run(); });
-    if (!position.ok()) return position.status();
+  void Begin() { ReadNext("the header"); }
 
-    v1::RegisterResponse accepted;
-    accepted.mutable_accepted()->set_request_id(request_id);
-    accepted.mutable_accepted()->set_queue_position(*position);
-    if (!stream_->Write(accepted)) return ClientGone(*job);
-    return RelayUntilDone(*job);
+  void OnReadDone(bool ok) override {
+    EndWait();
+    if (finished()) return;
+    absl::Status status;
+    if (!ok) {
+      status = ctx_->IsCancelled() ? ClientGone()
+               : payload_
+                   ? payload_->EndedEarly()
+                   : absl::InvalidArgumentError("header: the stream ended before the header");
+    } else {
+      status = payload_ ? OnChunk() : OnHeader();
+    }
+    if (status.ok() && !(payload_ && payload_->complete()) && !inline_source_) {
+      ReadNext("a source chunk");
+      return;
+    }
+    if (status.ok()) status = Submit();
+    if (!status.ok()) FinishWith(status);
+  }
+
+  void OnWriteDone(bool ok) override {
+    EndWait();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      writing_ = false;
+    }
+    if (!ok) {
+      Abandoned();
+      FinishWith(ClientGone());
+      return;
+    }
+    Pump();
   }
 
  private:
-  // Everything is checked before the job is admitted, so a bad request never takes a worker.
-  absl::StatusOr<RegistrationInput> ReadRequest() {
-    v1::RegisterRequest first;
-    if (!stream_->Read(&first)) {
-      return absl::InvalidArgumentError("header: the stream ended before the header");
-    }
-    if (!first.has_header()) {
+  void ReadNext(const char* what) {
+    BeginWait(what);
+    StartRead(&request_);
+  }
+
+  void Abandoned() override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (job_) job_->Cancel();
+  }
+
+  // Steps 2 and 3.
+  absl::Status OnHeader() {
+    if (!request_.has_header()) {
       return absl::InvalidArgumentError("header: the first message must be the header");
     }
-    v1::RegisterHeader& header = *first.mutable_header();
-    RegistrationInput in;
-    if (absl::Status s = ParseHeader(header, &in); !s.ok()) return s;
-    auto expected = CheckSourceHeader(header.source());
+    v1::RegisterHeader& header = *request_.mutable_header();
+    if (absl::Status s = ParseHeader(header); !s.ok()) return s;
+    auto expected = wire::CheckCloudHeader(header.source(), c_.config.max_points, "header.source");
     if (!expected.ok()) return expected.status();
+    if (header.source().point_count() < kMinSourcePoints) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("header.source.point_count: a registration needs at least ",
+                       kMinSourcePoints, " points (got ", header.source().point_count(), ")"));
+    }
     // An unknown target is reported before the source is transferred. A resident target is
     // pinned from here on, so it cannot be evicted while this request waits in the queue.
-    auto target = c_.cache.Peek(in.target_id);
+    auto info = c_.cache.Info(input_.target_id);
+    if (!info.ok()) return info.status();
+    if (NeedsOrganisedTarget(input_.options.method) && !info->has_intrinsics) {
+      return OrganisedTargetRequired(input_.options.method);
+    }
+    auto target = c_.cache.Peek(input_.target_id);
     if (!target.ok()) return target.status();
-    in.target = *std::move(target);
-    auto source = ReadSource(header, *expected);
-    if (!source.ok()) return source.status();
-    in.source = *std::move(source);
-    in.deadline = ctx_->deadline();
-    scope_->add_detail(absl::StrCat("method=", std::string(wire::MethodName(header.method())),
-                                    " source_points=", in.source.size()));
-    return in;
+    input_.target = *std::move(target);
+
+    auto slot = c_.jobs.Reserve();
+    if (!slot.ok()) return slot.status();
+    slot_.emplace(*std::move(slot));
+    const std::uint64_t decoded =
+        header.source().point_count() * sizeof(Vec3) * (header.source().has_normals() ? 2 : 1);
+    auto lease = c_.inflight.TryAcquire(*expected + decoded, "header.source");
+    if (!lease.ok()) return lease.status();
+    lease_ = std::make_shared<InFlightBudget::Lease>(*std::move(lease));
+
+    source_header_ = header.source();
+    if (!header.source_data().empty()) {
+      if (header.source_data().size() != *expected) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("header.source_data: ", header.source_data().size(), " bytes, but ",
+                         header.source().point_count(), " points of ",
+                         wire::RecordBytes(header.source()), " bytes need ", *expected));
+      }
+      inline_source_ = std::move(*header.mutable_source_data());
+      return absl::OkStatus();
+    }
+    payload_.emplace(*expected, c_.config.max_chunk_bytes, "source_chunk");
+    return absl::OkStatus();
   }
 
   // Ids, method, parameters and transforms.
-  absl::Status ParseHeader(const v1::RegisterHeader& header, RegistrationInput* in) {
-    in->request_id = header.request_id().empty() ? NewRequestId() : header.request_id();
-    if (absl::Status s = ValidateRequestId(in->request_id, "header.request_id"); !s.ok()) return s;
-    scope_->set_request_id(in->request_id);
+  absl::Status ParseHeader(const v1::RegisterHeader& header) {
+    input_.request_id = header.request_id().empty() ? NewRequestId() : header.request_id();
+    if (absl::Status s = ValidateRequestId(input_.request_id, "header.request_id"); !s.ok()) {
+      return s;
+    }
+    scope_.set_request_id(input_.request_id);
     if (absl::Status s = ValidateTargetId(header.target_id(), "header.target_id"); !s.ok()) {
       return s;
     }
-    in->target_id = header.target_id();
-    scope_->set_target_id(in->target_id);
+    input_.target_id = header.target_id();
+    scope_.set_target_id(input_.target_id);
     auto options = wire::OptionsFromProto(header.method(), header.parameters());
     if (!options.ok()) return options.status();
-    in->options = *options;
+    input_.options = *options;
     if (header.has_initial_transform()) {
       auto m = wire::FromProto(header.initial_transform(), "header.initial_transform");
       if (!m.ok()) return m.status();
-      in->initial = *m;
+      input_.initial = *m;
     }
     if (header.has_ground_truth()) {
       auto m = wire::FromProto(header.ground_truth(), "header.ground_truth");
       if (!m.ok()) return m.status();
-      in->ground_truth = *m;
+      input_.ground_truth = *m;
     }
+    method_name_ = std::string(wire::MethodName(header.method()));
     return absl::OkStatus();
   }
 
-  // The payload size the source header declares.
-  absl::StatusOr<std::uint64_t> CheckSourceHeader(const v1::CloudHeader& source) {
-    auto expected = wire::CheckCloudHeader(source, c_.config.max_points, "header.source");
-    if (!expected.ok()) return expected.status();
-    if (source.point_count() < kMinSourcePoints) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("header.source.point_count: a registration needs at least ",
-                       kMinSourcePoints, " points (got ", source.point_count(), ")"));
+  absl::Status OnChunk() {
+    if (!request_.has_source_chunk()) {
+      return absl::InvalidArgumentError("source_chunk: expected a chunk, got another header");
     }
-    return expected;
+    return payload_->Append(request_.source_chunk());
   }
 
-  // The source from the inline payload, or from the chunks that follow the header.
-  absl::StatusOr<PointCloud> ReadSource(v1::RegisterHeader& header, std::uint64_t expected) {
-    std::string payload;
-    if (!header.source_data().empty()) {
-      if (header.source_data().size() != expected) {
-        return absl::InvalidArgumentError(
-            absl::StrCat("header.source_data: ", header.source_data().size(), " bytes, but ",
-                         header.source().point_count(), " points of ",
-                         wire::RecordBytes(header.source()), " bytes need ", expected));
-      }
-      payload = std::move(*header.mutable_source_data());
-    } else {
-      v1::RegisterRequest message;
-      auto next_chunk = [&]() -> absl::StatusOr<const v1::CloudChunk*> {
-        if (!stream_->Read(&message)) {
-          if (ctx_->IsCancelled()) return absl::CancelledError("client cancelled the call");
-          return nullptr;
+  // Step 5: decode, hand the job to its reserved place, announce it.
+  absl::Status Submit() {
+    std::string payload = inline_source_ ? std::move(*inline_source_) : payload_->Release();
+    auto source = wire::DecodeCloud(source_header_, payload, "source");
+    if (!source.ok()) return source.status();
+    if (absl::Status s = CheckCoordinateRange(*source); !s.ok()) {
+      return absl::InvalidArgumentError(absl::StrCat("source: ", s.message()));
+    }
+    input_.source = *std::move(source);
+    input_.deadline = ctx_->deadline();
+    scope_.add_detail(
+        absl::StrCat("method=", method_name_, " source_points=", input_.source.size()));
+    const std::string request_id = input_.request_id;
+    auto job =
+        std::make_shared<RegistrationJob>(std::move(input_), &c_.cache, &c_.state.stop_flag());
+    std::weak_ptr<RegisterCall> weak = std::static_pointer_cast<RegisterCall>(self());
+    job->SetListener([weak] {
+      if (std::shared_ptr<RegisterCall> call = weak.lock()) call->Pump();
+    });
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      job_ = job;
+    }
+    auto position = slot_->Submit([job, lease = lease_] { job->Run(); },
+                                  [job](absl::Status s) { job->Fail(std::move(s)); });
+    if (!position.ok()) return position.status();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      out_.mutable_accepted()->set_request_id(request_id);
+      out_.mutable_accepted()->set_queue_position(*position);
+      accepted_pending_ = true;
+    }
+    Pump();
+    return absl::OkStatus();
+  }
+
+  // Sends what is next, if nothing is being written: the acceptance, the newest progress, or
+  // the end. Called by reactions and, through the job's listener, by the worker.
+  void Pump() {
+    enum class Next { kNothing, kWrite, kResult, kStatus } next = Next::kNothing;
+    absl::Status status;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (finished_ || writing_ || !job_) return;
+      if (accepted_pending_) {
+        accepted_pending_ = false;
+        next = Next::kWrite;
+      } else {
+        const RegistrationJob::Update update = job_->WaitForUpdate(std::chrono::milliseconds(0));
+        if (update.progress) {
+          out_.Clear();
+          wire::ToProto(*update.progress, out_.mutable_progress());
+          next = Next::kWrite;
+        } else if (update.done) {
+          status = FillResult(*job_);
+          next = status.ok() ? Next::kResult : Next::kStatus;
+          if (status.ok()) finished_ = true;
         }
-        if (!message.has_source_chunk()) {
-          return absl::InvalidArgumentError("source_chunk: expected a chunk, got another header");
-        }
-        return &message.source_chunk();
-      };
-      auto chunks =
-          ReadChunkedPayload(expected, c_.config.max_chunk_bytes, "source_chunk", next_chunk);
-      if (!chunks.ok()) return chunks.status();
-      payload = *std::move(chunks);
-    }
-    return wire::DecodeCloud(header.source(), payload, "source");
-  }
-
-  // Forwards the newest progress until the job ends. A blocked Write (slow reader) just means
-  // intermediate iterations are skipped: the job overwrites its report slot meanwhile.
-  absl::Status RelayUntilDone(RegistrationJob& job) {
-    for (;;) {
-      const RegistrationJob::Update update = job.WaitForUpdate(kPollInterval);
-      if (ctx_->IsCancelled()) return ClientGone(job);
-      if (update.progress) {
-        v1::RegisterResponse response;
-        wire::ToProto(*update.progress, response.mutable_progress());
-        if (!stream_->Write(response)) return ClientGone(job);
       }
-      if (update.done) return SendResult(job);
+      if (next == Next::kWrite) writing_ = true;
+    }
+    switch (next) {
+      case Next::kWrite:
+        BeginWait("the client to read a response");
+        StartWrite(&out_);
+        break;
+      case Next::kResult:
+        StartWriteAndFinish(&out_, grpc::WriteOptions(), scope_.Finish(absl::OkStatus()));
+        break;
+      case Next::kStatus:
+        FinishWith(status);
+        break;
+      case Next::kNothing:
+        break;
     }
   }
 
-  absl::Status SendResult(const RegistrationJob& job) {
+  // The result message into out_, or the status the call ends with. Requires mutex_.
+  absl::Status FillResult(const RegistrationJob& job) {
     const absl::StatusOr<RegistrationOutcome>& outcome = job.outcome();
     if (!outcome.ok()) return outcome.status();
     const RegistrationResult& result = outcome->result;
-    scope_->add_detail(absl::StrFormat(
+    scope_.add_detail(absl::StrFormat(
         "iterations=%d termination=%s queue_ms=%.1f", result.iterations,
         std::string(TerminationName(result.termination)), outcome->queue_seconds * 1e3));
-    if (result.termination == Termination::kCancelled) {
-      return job.StoppedStatus(result.iterations);
-    }
-    v1::RegisterResponse response;
-    v1::Result* out = response.mutable_result();
+    if (result.termination == Termination::kCancelled) return job.StoppedStatus(result.iterations);
+    out_.Clear();
+    v1::Result* out = out_.mutable_result();
     wire::ToProto(result, out);
     out->mutable_timings()->set_queue_seconds(outcome->queue_seconds);
     if (outcome->ground_truth_error) {
@@ -183,32 +262,30 @@ class RegisterHandler {
       gt->set_rotation_error_deg(e.rotation_deg);
       gt->set_translation_error_d(e.translation_d);
     }
-    if (!stream_->Write(response)) return absl::CancelledError("client went away");
     return absl::OkStatus();
   }
 
-  // Stops the job (it frees its worker within one iteration) and reports why the call ended.
-  absl::Status ClientGone(RegistrationJob& job) {
-    job.Cancel();
-    if (std::chrono::system_clock::now() >= ctx_->deadline()) {
-      return absl::DeadlineExceededError("deadline exceeded; registration cancelled");
-    }
-    return absl::CancelledError("client cancelled; registration cancelled");
-  }
-
-  ServiceContext& c_;
-  grpc::ServerContext* ctx_;
-  RegisterStream* stream_;
-  RpcScope* scope_;
+  v1::RegisterRequest request_;
+  RegistrationInput input_;
+  std::string method_name_;
+  v1::CloudHeader source_header_;
+  std::optional<std::string> inline_source_;
+  std::optional<wire::PayloadAssembler> payload_;
+  std::optional<JobPool::Slot> slot_;
+  std::shared_ptr<InFlightBudget::Lease> lease_;  // shared with the job: held until it ends
+  // Guarded by mutex_:
+  std::shared_ptr<RegistrationJob> job_;
+  v1::RegisterResponse out_;  // the message being written (alive until OnWriteDone)
+  bool accepted_pending_ = false;
+  bool writing_ = false;
 };
 
-class RegistrationServiceImpl final : public v1::RegistrationService::Service {
+class RegistrationServiceImpl final : public v1::RegistrationService::CallbackService {
  public:
   explicit RegistrationServiceImpl(ServiceContext& c) : c_(c) {}
 
-  grpc::Status Register(grpc::ServerContext* ctx, RegisterStream* stream) override {
-    RpcScope scope(c_, "Register");
-    return scope.Finish(RegisterHandler(c_, ctx, stream, &scope).Run());
+  RegisterReactor* Register(grpc::CallbackServerContext* ctx) override {
+    return StreamingCall<RegisterReactor>::Launch<RegisterCall>(c_, ctx);
   }
 
  private:

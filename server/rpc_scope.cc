@@ -2,8 +2,10 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "grpcpp/server_context.h"
 #include "mlsreg/wire/convert.h"
 #include "server/log.h"
+#include "server/retry_hint.h"
 
 namespace mlsreg::server {
 namespace {
@@ -29,8 +31,8 @@ std::string Quoted(std::string_view text) {
 
 }  // namespace
 
-RpcScope::RpcScope(ServiceContext& context, std::string_view rpc)
-    : context_(context), rpc_(rpc), start_(std::chrono::steady_clock::now()) {
+RpcScope::RpcScope(ServiceContext& context, std::string_view rpc, grpc::ServerContextBase* call)
+    : context_(context), call_(call), rpc_(rpc), start_(std::chrono::steady_clock::now()) {
   context_.state.Enter();
 }
 
@@ -49,6 +51,9 @@ grpc::Status RpcScope::Finish(const absl::Status& status) {
                   " duration_ms=", absl::StrFormat("%.1f", seconds * 1e3), details_);
   if (!status.ok()) absl::StrAppend(&line, " message=", Quoted(std::string(status.message())));
   LogLine(line);
+  if (std::optional<std::string> retry = RetryAfterValue(status); retry && call_) {
+    call_->AddTrailingMetadata(kRetryAfterMetadata, *retry);
+  }
   return wire::ToGrpcStatus(status);
 }
 

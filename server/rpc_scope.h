@@ -1,7 +1,8 @@
 // RpcScope: the bookkeeping around one handler invocation. It counts the call as in flight,
 // and Finish() records its status code and latency in the stats, writes the access-log line
 // ("rpc=Register request_id=... target=... code=OK duration_ms=...") and converts the status
-// for gRPC: handlers work with absl::Status and call Finish exactly once, at their return.
+// for gRPC, with its retry hint as trailing metadata (retry_hint.h): handlers work with
+// absl::Status and call Finish exactly once, at their return.
 #pragma once
 
 #include <chrono>
@@ -10,13 +11,17 @@
 
 #include "absl/status/status.h"
 #include "grpcpp/support/status.h"
+
+namespace grpc {
+class ServerContextBase;
+}
 #include "server/service_context.h"
 
 namespace mlsreg::server {
 
 class RpcScope {
  public:
-  RpcScope(ServiceContext& context, std::string_view rpc);
+  RpcScope(ServiceContext& context, std::string_view rpc, grpc::ServerContextBase* call);
   ~RpcScope();
   RpcScope(const RpcScope&) = delete;
   RpcScope& operator=(const RpcScope&) = delete;
@@ -30,6 +35,7 @@ class RpcScope {
 
  private:
   ServiceContext& context_;
+  grpc::ServerContextBase* call_;
   std::string rpc_;
   std::string target_id_;
   std::string request_id_;

@@ -9,6 +9,7 @@
 #include "grpcpp/ext/proto_server_reflection_plugin.h"
 #include "grpcpp/grpcpp.h"
 #include "grpcpp/health_check_service_interface.h"
+#include "grpcpp/impl/server_builder_option.h"
 #include "grpcpp/impl/service_type.h"
 #include "grpcpp/resource_quota.h"
 #include "grpcpp/security/server_credentials.h"
@@ -29,7 +30,26 @@ constexpr const char* kServiceNames[] = {"", "mlsreg.v1.TargetService",
 constexpr std::chrono::seconds kStopGrace{2};
 constexpr std::chrono::milliseconds kDrainPoll{20};
 
+// Server reflection for one builder, on or off. Linking grpc++_reflection registers its plugin
+// with every builder of the process (a static initialiser), so the option removes it and adds it
+// back only when asked.
+class ReflectionOption final : public grpc::ServerBuilderOption {
+ public:
+  explicit ReflectionOption(bool enabled) : enabled_(enabled) {}
+  void UpdateArguments(grpc::ChannelArguments*) override {}
+  void UpdatePlugins(std::vector<std::unique_ptr<grpc::ServerBuilderPlugin>>* plugins) override {
+    const std::string name = grpc::reflection::ProtoServerReflectionPlugin().name();
+    std::erase_if(*plugins, [&](const auto& plugin) { return plugin->name() == name; });
+    if (enabled_)
+      plugins->push_back(std::make_unique<grpc::reflection::ProtoServerReflectionPlugin>());
+  }
+
+ private:
+  bool enabled_;
+};
+
 ServerConfig Resolve(ServerConfig config) {
+  LoadTokenFiles(&config).IgnoreError();  // Validate() has read them once already
   if (config.workers == 0) {
     config.workers = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   }
@@ -87,9 +107,13 @@ absl::StatusOr<std::unique_ptr<MlsregServer>> MlsregServer::Start(const ServerCo
   server->cache_ = *std::move(cache);
   server->jobs_ = std::make_unique<JobPool>(c.workers, c.queue_capacity);
   server->auth_ = std::make_unique<TokenAuthenticator>(c.token, c.admin_token);
-  server->context_ = std::make_unique<ServiceContext>(
-      ServiceContext{c, *server->cache_, *server->jobs_, server->stats_, *server->auth_,
-                     server->state_, Clock::now()});
+  server->inflight_ = std::make_unique<InFlightBudget>(c.max_inflight_bytes);
+  server->peer_streams_ = std::make_unique<PeerStreamLimiter>(c.max_streams_per_peer);
+  server->idle_ = std::make_unique<IdleWatchdog>(
+      std::chrono::milliseconds(static_cast<std::int64_t>(c.idle_timeout_seconds * 1000.0)));
+  server->context_ = std::make_unique<ServiceContext>(ServiceContext{
+      c, *server->cache_, *server->jobs_, server->stats_, *server->auth_, server->state_,
+      *server->inflight_, *server->peer_streams_, *server->idle_, Clock::now()});
   server->services_.push_back(NewTargetService(*server->context_));
   server->services_.push_back(NewRegistrationService(*server->context_));
   server->services_.push_back(NewStatsService(*server->context_));
@@ -97,15 +121,15 @@ absl::StatusOr<std::unique_ptr<MlsregServer>> MlsregServer::Start(const ServerCo
   auto credentials = Credentials(c);
   if (!credentials.ok()) return credentials.status();
   grpc::EnableDefaultHealthCheckService(true);
-  // Explicit call: with --as-needed the library would otherwise be dropped at link time.
-  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
+  builder.SetOption(std::make_unique<ReflectionOption>(c.reflection));
   builder.AddListeningPort(c.listen, *credentials, &server->port_);
   for (const auto& service : server->services_) builder.RegisterService(service.get());
   builder.SetMaxReceiveMessageSize(c.max_message_bytes);
   builder.SetMaxSendMessageSize(c.max_message_bytes);
-  // The sync server runs each call on its own thread; this caps them (excess calls get
-  // RESOURCE_EXHAUSTED from gRPC) so a flood of streams cannot exhaust the process.
+  // Unary calls and health checks run on the sync server's threads; this caps them (excess
+  // calls get RESOURCE_EXHAUSTED from gRPC). Streaming calls run on the callback API and hold no
+  // thread while their client is quiet.
   grpc::ResourceQuota quota("mlsreg");
   quota.SetMaxThreads(c.max_concurrent_rpcs);
   builder.SetResourceQuota(quota);

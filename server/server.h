@@ -1,5 +1,6 @@
 // MlsregServer: the mlsreg gRPC server (TargetService, RegistrationService, StatsService, plus
-// grpc.health.v1 and server reflection) over one target cache and one worker pool.
+// grpc.health.v1 and, when configured, server reflection) over one target cache and one worker
+// pool.
 #pragma once
 
 #include <memory>
@@ -8,11 +9,13 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "server/inflight_budget.h"
 #include "server/job_pool.h"
 #include "server/server_config.h"
 #include "server/service_context.h"
 #include "server/serving_state.h"
 #include "server/stats.h"
+#include "server/stream_guard.h"
 #include "server/target_cache.h"
 
 namespace grpc {
@@ -52,6 +55,9 @@ class MlsregServer {
   RequestStats stats_;
   std::unique_ptr<TokenAuthenticator> auth_;
   ServingState state_;
+  std::unique_ptr<InFlightBudget> inflight_;
+  std::unique_ptr<PeerStreamLimiter> peer_streams_;
+  std::unique_ptr<IdleWatchdog> idle_;
   std::unique_ptr<ServiceContext> context_;
   std::vector<std::unique_ptr<grpc::Service>> services_;
   std::unique_ptr<grpc::Server> server_;  // last: stops before what its handlers use

@@ -1,10 +1,15 @@
 #include "server/server_config.h"
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+
+#include <cctype>
 #include <fstream>
 #include <functional>
 #include <limits>
 #include <map>
 #include <sstream>
+#include <tuple>
 #include <type_traits>
 
 #include "absl/strings/str_cat.h"
@@ -68,6 +73,12 @@ const std::map<std::string, FieldSetter>& Setters() {
       {"token", Set("token", &ServerConfig::token)},
       {"admin_token", Set("admin_token", &ServerConfig::admin_token)},
       {"drain_seconds", Set("drain_seconds", &ServerConfig::drain_seconds)},
+      {"max_inflight_bytes", Set("max_inflight_bytes", &ServerConfig::max_inflight_bytes)},
+      {"max_streams_per_peer", Set("max_streams_per_peer", &ServerConfig::max_streams_per_peer)},
+      {"idle_timeout_seconds", Set("idle_timeout_seconds", &ServerConfig::idle_timeout_seconds)},
+      {"reflection", Set("reflection", &ServerConfig::reflection)},
+      {"token_file", Set("token_file", &ServerConfig::token_file)},
+      {"admin_token_file", Set("admin_token_file", &ServerConfig::admin_token_file)},
   };
   return *setters;
 }
@@ -120,7 +131,35 @@ absl::Status LoadConfigFile(const std::string& path, ServerConfig* config) {
 bool IsLoopbackAddress(const std::string& listen) {
   if (listen.rfind("unix:", 0) == 0 || listen.rfind("unix-abstract:", 0) == 0) return true;
   const std::string host = HostOf(listen);
-  return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+  if (host == "localhost") return true;
+  in_addr v4{};
+  if (inet_pton(AF_INET, host.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
+  in6_addr v6{};
+  if (inet_pton(AF_INET6, host.c_str(), &v6) == 1) {
+    if (IN6_IS_ADDR_LOOPBACK(&v6)) return true;
+    // ::ffff:127.x.y.z, IPv4-mapped loopback
+    return IN6_IS_ADDR_V4MAPPED(&v6) && v6.s6_addr[12] == 127;
+  }
+  return false;
+}
+
+absl::Status LoadTokenFiles(ServerConfig* config) {
+  for (auto [file, token, what] :
+       {std::tuple{&config->token_file, &config->token, "token_file"},
+        std::tuple{&config->admin_token_file, &config->admin_token, "admin_token_file"}}) {
+    if (file->empty()) continue;
+    auto text = ReadTextFile(*file, what);
+    if (!text.ok()) return text.status();
+    std::string value = *text;
+    while (!value.empty() && std::isspace(static_cast<unsigned char>(value.back()))) {
+      value.pop_back();
+    }
+    if (value.empty()) {
+      return absl::InvalidArgumentError(absl::StrCat(what, ": file '", *file, "' is empty"));
+    }
+    *token = value;
+  }
+  return absl::OkStatus();
 }
 
 absl::Status Validate(const ServerConfig& c) {
@@ -140,6 +179,21 @@ absl::Status Validate(const ServerConfig& c) {
     return bad("max_message_bytes", "must be at least max_chunk_bytes + 1024");
   }
   if (c.max_concurrent_rpcs < 4) return bad("max_concurrent_rpcs", "must be >= 4");
+  if (c.max_inflight_bytes == 0) return bad("max_inflight_bytes", "must be > 0");
+  if (c.max_streams_per_peer < 1) return bad("max_streams_per_peer", "must be >= 1");
+  if (!(c.idle_timeout_seconds >= 0.05 && c.idle_timeout_seconds <= 86400.0)) {
+    return bad("idle_timeout_seconds", "must be in [0.05, 86400]");
+  }
+  if (!c.token.empty() && !c.token_file.empty()) {
+    return bad("token_file", "give token or token_file, not both");
+  }
+  if (!c.admin_token.empty() && !c.admin_token_file.empty()) {
+    return bad("admin_token_file", "give admin_token or admin_token_file, not both");
+  }
+  {
+    ServerConfig tokens = c;
+    if (absl::Status s = LoadTokenFiles(&tokens); !s.ok()) return s;
+  }
   if (!(c.drain_seconds >= 0.0 && c.drain_seconds <= 3600.0)) {
     return bad("drain_seconds", "must be in [0, 3600]");
   }

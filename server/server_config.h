@@ -21,14 +21,26 @@ struct ServerConfig {
   std::uint64_t max_points = 20'000'000;  // per cloud (target or source)
   int max_message_bytes = 64 << 20;       // gRPC receive/send limit per message
   int max_chunk_bytes = 4 << 20;          // data bytes per CloudChunk
-  int max_concurrent_rpcs = 256;          // gRPC sync-server threads
+  int max_concurrent_rpcs = 256;          // gRPC sync-server threads (unary RPCs, health)
+  // Request data held outside the cache (uploads being received, sources being registered).
+  std::uint64_t max_inflight_bytes = std::uint64_t{1} << 30;
+  // Streaming calls (uploads, registrations) one peer host may have open at once.
+  int max_streams_per_peer = 64;
+  // A streaming call that waits this long for its client (a message, or reading one) is ended.
+  double idle_timeout_seconds = 30.0;
+  // gRPC server reflection (grpcurl without .proto files). Off by default: it answers without
+  // a token.
+  bool reflection = false;
   // TLS when tls_cert and tls_key are set; mutual TLS (client certificates verified against
   // tls_client_ca) when tls_client_ca is set too. PEM file paths.
   std::string tls_cert, tls_key, tls_client_ca;
   // Plaintext is refused on a non-loopback address unless this is set (e.g. behind a TLS proxy).
   bool allow_insecure_remote = false;
   // Bearer tokens: `token` is required by every RPC when set; `admin_token` by DeleteTarget.
+  // The *_file forms read the token from a file (trailing whitespace dropped), so it does not
+  // show in `ps`; a token and its file are exclusive.
   std::string token, admin_token;
+  std::string token_file, admin_token_file;
   // On shutdown, running registrations get this long to finish before they are cancelled.
   double drain_seconds = 10.0;
 };
@@ -38,12 +50,16 @@ struct ServerConfig {
 absl::Status LoadConfigFile(const std::string& path, ServerConfig* config);
 
 // Range and consistency checks. Plaintext on a non-loopback address without
-// allow_insecure_remote is FailedPrecondition; a TLS file that cannot be read is InvalidArgument
-// naming the file.
+// allow_insecure_remote is FailedPrecondition; a TLS or token file that cannot be read is
+// InvalidArgument naming the file.
 absl::Status Validate(const ServerConfig& config);
 
-// True when `listen` (host:port) names a loopback host (127.0.0.0/8, ::1, localhost) or a unix
-// socket, i.e. nobody else can reach a plaintext port.
+// Reads token_file and admin_token_file into token and admin_token.
+absl::Status LoadTokenFiles(ServerConfig* config);
+
+// True when `listen` (host:port) names a loopback host (an IPv4 literal in 127.0.0.0/8, ::1,
+// localhost) or a unix socket, i.e. nobody else can reach a plaintext port. Host names other
+// than localhost are not loopback, whatever they start with.
 bool IsLoopbackAddress(const std::string& listen);
 
 // Reads a whole (PEM) file; InvalidArgument naming `what` and the path when it cannot.

@@ -4,10 +4,12 @@
 #include <chrono>
 
 #include "server/auth.h"
+#include "server/inflight_budget.h"
 #include "server/job_pool.h"
 #include "server/server_config.h"
 #include "server/serving_state.h"
 #include "server/stats.h"
+#include "server/stream_guard.h"
 #include "server/target_cache.h"
 
 namespace mlsreg::server {
@@ -19,6 +21,9 @@ struct ServiceContext {
   RequestStats& stats;
   const TokenAuthenticator& auth;
   ServingState& state;
+  InFlightBudget& inflight;
+  PeerStreamLimiter& peer_streams;
+  IdleWatchdog& idle;
   std::chrono::steady_clock::time_point started;
 };
 

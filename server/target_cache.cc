@@ -3,6 +3,9 @@
 #include <optional>
 
 #include "absl/strings/str_cat.h"
+#include "mlsreg/cloud_digest.h"
+#include "server/log.h"
+#include "server/retry_hint.h"
 
 namespace mlsreg::server {
 namespace {
@@ -19,13 +22,24 @@ absl::StatusOr<std::unique_ptr<TargetCache>> TargetCache::Open(std::uint64_t bud
   if (cache->store_) {
     auto stored = cache->store_->List();
     if (!stored.ok()) return stored.status();
-    for (TargetStore::Entry& e : *stored) cache->entries_[e.id].meta = e.meta;
+    for (TargetStore::Entry& e : *stored) {
+      if (e.meta.digest.empty()) {  // stored by an older version: learn it once per start
+        if (auto cloud = cache->store_->Load(e.id); cloud.ok()) {
+          e.meta.digest = CloudDigest(*cloud);
+        } else {
+          LogLine(
+              absl::StrCat("target store: '", e.id, "' unreadable: ", cloud.status().message()));
+        }
+      }
+      cache->entries_[e.id].meta = e.meta;
+    }
   }
   return cache;
 }
 
-StoredTargetMeta TargetCache::MetaOf(const Target& target) {
+StoredTargetMeta TargetCache::MetaOf(const Target& target, const std::string& digest) {
   StoredTargetMeta meta;
+  meta.digest = digest;
   meta.point_count = target.cloud().size();
   meta.memory_bytes = target.MemoryBytes();
   meta.sampling_distance = target.sampling_distance();
@@ -44,24 +58,65 @@ TargetInfo TargetCache::InfoLocked(const std::string& id, const Entry& entry) co
   info.sampling_distance = entry.meta.sampling_distance;
   info.build_seconds = entry.meta.build_seconds;
   info.registrations = entry.registrations;
+  info.has_intrinsics = entry.meta.intrinsics.has_value();
+  info.digest = entry.meta.digest;
   return info;
 }
 
-absl::Status TargetCache::CheckCanCreate(std::string_view id, std::uint64_t min_bytes) const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  if (entries_.find(id) != entries_.end()) {
+absl::StatusOr<std::optional<TargetInfo>> TargetCache::ExistingLocked(
+    std::string_view id, std::string_view digest) const {
+  const auto it = entries_.find(id);
+  if (it == entries_.end()) return std::nullopt;
+  if (digest.empty()) {
     return absl::AlreadyExistsError(absl::StrCat("target '", std::string(id), "' already exists"));
   }
-  if (min_bytes > budget_bytes_) {
-    return absl::ResourceExhaustedError(
-        absl::StrCat("target '", std::string(id), "' needs at least ", min_bytes,
-                     " bytes of cache but the budget is ", budget_bytes_, " bytes"));
+  if (digest != it->second.meta.digest) {
+    return absl::AlreadyExistsError(
+        absl::StrCat("target '", std::string(id), "' already exists with other content (stored ",
+                     it->second.meta.digest, ", this upload ", std::string(digest),
+                     "); delete it first or use another id"));
   }
-  return absl::OkStatus();
+  return InfoLocked(it->first, it->second);
+}
+
+absl::StatusOr<std::optional<TargetInfo>> TargetCache::Existing(std::string_view id,
+                                                                std::string_view digest) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return ExistingLocked(id, digest);
+}
+
+absl::StatusOr<std::optional<TargetInfo>> TargetCache::CheckCanCreate(
+    std::string_view id, std::uint64_t min_bytes, std::string_view digest) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!digest.empty() || entries_.find(id) == entries_.end()) {
+    auto existing = ExistingLocked(id, digest);
+    if (!existing.ok() || existing->has_value()) return existing;
+  }
+  // A taken id without a declared digest: the data decides (Insert compares).
+  if (min_bytes > budget_bytes_) {
+    return Permanent(absl::ResourceExhaustedError(
+        absl::StrCat("target '", std::string(id), "' needs at least ", min_bytes,
+                     " bytes of cache but the budget is ", budget_bytes_, " bytes")));
+  }
+  return std::nullopt;
+}
+
+void TargetCache::PruneRetiredLocked() const {
+  std::erase_if(retired_, [this](const auto& retired) {
+    if (!retired.first.expired()) return false;
+    bytes_ -= retired.second;
+    return true;
+  });
 }
 
 absl::Status TargetCache::MakeRoomLocked(std::uint64_t bytes, std::string_view for_id) {
+  PruneRetiredLocked();
   if (bytes_ + bytes <= budget_bytes_) return absl::OkStatus();
+  if (bytes > budget_bytes_) {
+    return Permanent(absl::ResourceExhaustedError(
+        absl::StrCat("target '", std::string(for_id), "' needs ", bytes,
+                     " bytes of cache but the budget is ", budget_bytes_, " bytes")));
+  }
   // Idle: only the cache holds it. Nobody can take a new reference without the mutex, so a
   // use_count of 1 cannot grow while we decide.
   auto idle = [](const Entry& e) { return e.target && e.target.use_count() == 1; };
@@ -70,9 +125,11 @@ absl::Status TargetCache::MakeRoomLocked(std::uint64_t bytes, std::string_view f
     if (idle(e)) evictable += e.meta.memory_bytes;
   }
   if (bytes_ - evictable + bytes > budget_bytes_) {
-    return absl::ResourceExhaustedError(absl::StrCat(
-        "target cache full: '", std::string(for_id), "' needs ", bytes, " bytes, ",
-        bytes_ - evictable, " of the ", budget_bytes_, "-byte budget are held by targets in use"));
+    return RetryLater(absl::ResourceExhaustedError(absl::StrCat(
+                          "target cache full: '", std::string(for_id), "' needs ", bytes,
+                          " bytes, ", bytes_ - evictable, " of the ", budget_bytes_,
+                          "-byte budget are held by targets in use; retry later")),
+                      std::chrono::milliseconds(1000));
   }
   while (bytes_ + bytes > budget_bytes_) {
     auto victim = entries_.end();
@@ -94,8 +151,15 @@ absl::Status TargetCache::MakeRoomLocked(std::uint64_t bytes, std::string_view f
 }
 
 absl::StatusOr<TargetInfo> TargetCache::Insert(const std::string& id,
-                                               std::shared_ptr<const Target> target) {
-  const StoredTargetMeta meta = MetaOf(*target);
+                                               std::shared_ptr<const Target> target,
+                                               const std::string& digest) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto existing = ExistingLocked(id, digest);
+    if (!existing.ok()) return existing.status();
+    if (existing->has_value()) return **existing;  // the same content: nothing to store
+  }
+  const StoredTargetMeta meta = MetaOf(*target, digest);
   std::optional<TargetStore::Staged> staged;
   if (store_) {
     auto s = store_->Stage(id, target->cloud(), meta);
@@ -107,9 +171,10 @@ absl::StatusOr<TargetInfo> TargetCache::Insert(const std::string& id,
     if (staged) store_->Discard(*staged);
     return status;
   };
-  if (entries_.find(id) != entries_.end()) {
-    return fail(
-        absl::AlreadyExistsError(absl::StrCat("target '", std::string(id), "' already exists")));
+  if (auto existing = ExistingLocked(id, digest); !existing.ok() || existing->has_value()) {
+    fail(absl::OkStatus());  // created concurrently meanwhile: theirs stays
+    if (!existing.ok()) return existing.status();
+    return **existing;
   }
   if (absl::Status s = MakeRoomLocked(meta.memory_bytes, id); !s.ok()) return fail(s);
   if (staged) {
@@ -134,7 +199,8 @@ absl::StatusOr<std::shared_ptr<const Target>> TargetCache::Peek(std::string_view
   return it->second.target;
 }
 
-absl::StatusOr<std::shared_ptr<const Target>> TargetCache::Acquire(std::string_view id) {
+absl::StatusOr<std::shared_ptr<const Target>> TargetCache::Acquire(std::string_view id,
+                                                                   const StopCheck& should_stop) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     const auto it = entries_.find(id);
@@ -155,7 +221,8 @@ absl::StatusOr<std::shared_ptr<const Target>> TargetCache::Acquire(std::string_v
     return absl::DataLossError(absl::StrCat("stored target '", std::string(id),
                                             "' cannot be read: ", cloud.status().message()));
   }
-  auto built = Target::Build(std::move(*cloud));
+  auto built = Target::Build(std::move(*cloud), {}, should_stop);
+  if (absl::IsCancelled(built.status())) return built.status();
   if (!built.ok()) {
     return absl::DataLossError(absl::StrCat("stored target '", std::string(id),
                                             "' cannot be rebuilt: ", built.status().message()));
@@ -165,7 +232,7 @@ absl::StatusOr<std::shared_ptr<const Target>> TargetCache::Acquire(std::string_v
   if (it == entries_.end()) return NotFound(id);
   Entry& entry = it->second;
   if (!entry.target) {
-    const StoredTargetMeta meta = MetaOf(**built);
+    const StoredTargetMeta meta = MetaOf(**built, entry.meta.digest);
     if (absl::Status s = MakeRoomLocked(meta.memory_bytes, id); !s.ok()) return s;
     entry.target = *std::move(built);
     entry.meta = meta;
@@ -202,7 +269,13 @@ absl::Status TargetCache::Erase(std::string_view id) {
   if (store_) {
     if (absl::Status s = store_->Remove(it->first); !s.ok()) return s;
   }
-  if (it->second.target) bytes_ -= it->second.meta.memory_bytes;
+  if (const std::shared_ptr<const Target>& target = it->second.target) {
+    if (target.use_count() > 1) {  // registrations still hold it: its memory is not free yet
+      retired_.emplace_back(target, it->second.meta.memory_bytes);
+    } else {
+      bytes_ -= it->second.meta.memory_bytes;
+    }
+  }
   entries_.erase(it);
   return absl::OkStatus();
 }
@@ -214,6 +287,7 @@ void TargetCache::CountRegistration(std::string_view id) {
 
 CacheCounters TargetCache::counters() const {
   std::lock_guard<std::mutex> lock(mutex_);
+  PruneRetiredLocked();
   CacheCounters c;
   c.bytes = bytes_;
   c.budget_bytes = budget_bytes_;

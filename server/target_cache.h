@@ -11,6 +11,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -32,10 +33,13 @@ struct TargetInfo {
   double sampling_distance = 0.0;
   double build_seconds = 0.0;
   std::uint64_t registrations = 0;
+  bool has_intrinsics = false;  // organised scan: reverse calibration can use it
+  std::string digest;           // CloudDigest of its content
 };
 
 struct CacheCounters {
-  std::uint64_t bytes = 0;  // held by resident targets
+  // Held by resident targets, and by deleted ones that registrations still use.
+  std::uint64_t bytes = 0;
   std::uint64_t budget_bytes = 0;
   int entries = 0;              // known targets, resident or stored
   std::uint64_t hits = 0;       // lookups that found the target resident
@@ -49,27 +53,40 @@ class TargetCache {
   static absl::StatusOr<std::unique_ptr<TargetCache>> Open(std::uint64_t budget_bytes,
                                                            std::unique_ptr<TargetStore> store);
 
-  // Cheap checks before an upload is read: ALREADY_EXISTS for a known id, RESOURCE_EXHAUSTED
-  // when `min_bytes` (a lower bound of the built target's size) can never fit.
-  absl::Status CheckCanCreate(std::string_view id, std::uint64_t min_bytes) const;
+  // What an upload of `id` with content `digest` meets: the existing target when it holds the
+  // same content (the upload is done: creation is idempotent), nullopt when the id is free,
+  // ALREADY_EXISTS when the id holds other content. An empty `digest` (not known yet) only
+  // tells a free id from a taken one.
+  absl::StatusOr<std::optional<TargetInfo>> Existing(std::string_view id,
+                                                     std::string_view digest) const;
 
-  // Adds a freshly built target (persisting it first when there is a store), evicting idle
-  // targets when needed. ALREADY_EXISTS, or RESOURCE_EXHAUSTED when it cannot fit even after
-  // evicting every idle target.
-  absl::StatusOr<TargetInfo> Insert(const std::string& id, std::shared_ptr<const Target> target);
+  // Cheap checks before an upload is read: Existing(id, digest), and RESOURCE_EXHAUSTED (for
+  // good) when `min_bytes` (a lower bound of the built target's size) can never fit.
+  absl::StatusOr<std::optional<TargetInfo>> CheckCanCreate(std::string_view id,
+                                                           std::uint64_t min_bytes,
+                                                           std::string_view digest) const;
+
+  // Adds a freshly built target with content `digest` (persisting it first when there is a
+  // store), evicting idle targets when needed. When the id exists meanwhile: the stored target if
+  // its content is the same, else ALREADY_EXISTS. RESOURCE_EXHAUSTED when it cannot fit even after
+  // evicting every idle target (retry later), or can never fit (for good).
+  absl::StatusOr<TargetInfo> Insert(const std::string& id, std::shared_ptr<const Target> target,
+                                    const std::string& digest);
 
   // The resident target, or nullptr when it is known but only stored (Acquire loads it).
   // NOT_FOUND for an unknown id. Never blocks on a build.
   absl::StatusOr<std::shared_ptr<const Target>> Peek(std::string_view id);
 
   // The target, reloaded from the store and rebuilt when it is not resident (slow: call it on a
-  // worker). NOT_FOUND for an unknown id.
-  absl::StatusOr<std::shared_ptr<const Target>> Acquire(std::string_view id);
+  // worker; the rebuild asks `should_stop`). NOT_FOUND for an unknown id, CANCELLED when stopped.
+  absl::StatusOr<std::shared_ptr<const Target>> Acquire(std::string_view id,
+                                                        const StopCheck& should_stop = {});
 
   absl::StatusOr<TargetInfo> Info(std::string_view id) const;
   // Up to `limit` targets with id > `after`, sorted by id; `more` tells whether others follow.
   std::vector<TargetInfo> List(std::string_view after, std::size_t limit, bool* more) const;
-  // Forgets the target and deletes its files. Registrations holding it finish normally.
+  // Forgets the target and deletes its files. Registrations holding it finish normally; its
+  // bytes stay counted until the last of them lets it go.
   absl::Status Erase(std::string_view id);
 
   void CountRegistration(std::string_view id);
@@ -91,13 +108,20 @@ class TargetCache {
   // RESOURCE_EXHAUSTED when that is impossible. Requires mutex_.
   absl::Status MakeRoomLocked(std::uint64_t bytes, std::string_view for_id);
   TargetInfo InfoLocked(const std::string& id, const Entry& entry) const;
-  static StoredTargetMeta MetaOf(const Target& target);
+  absl::StatusOr<std::optional<TargetInfo>> ExistingLocked(std::string_view id,
+                                                           std::string_view digest) const;
+  // Stops counting deleted targets that nobody uses any more. Requires mutex_.
+  void PruneRetiredLocked() const;
+  static StoredTargetMeta MetaOf(const Target& target, const std::string& digest);
 
   const std::uint64_t budget_bytes_;
   const std::unique_ptr<TargetStore> store_;
   mutable std::mutex mutex_;
   Entries entries_;
-  std::uint64_t bytes_ = 0;
+  // Resident + retired bytes. Deleted targets that registrations held are counted in bytes_
+  // until released; any reader may notice that (hence mutable).
+  mutable std::uint64_t bytes_ = 0;
+  mutable std::vector<std::pair<std::weak_ptr<const Target>, std::uint64_t>> retired_;
   std::uint64_t clock_ = 0;
   std::uint64_t hits_ = 0, misses_ = 0, evictions_ = 0;
 };

@@ -1,29 +1,39 @@
 // TargetService: upload (client-streamed, header then chunks), inspect, list and delete targets.
+#include <atomic>
 #include <chrono>
 
 #include "absl/strings/str_cat.h"
 #include "grpcpp/grpcpp.h"
+#include "mlsreg/cloud_digest.h"
 #include "mlsreg/v1/mlsreg.grpc.pb.h"
 #include "mlsreg/wire/convert.h"
-#include "server/chunked_payload.h"
 #include "server/ids.h"
-#include "server/pending_result.h"
 #include "server/rpc_scope.h"
 #include "server/services.h"
+#include "server/streaming_call.h"
 
 namespace mlsreg::server {
 namespace {
 
-constexpr std::chrono::milliseconds kPollInterval{100};
 constexpr int kDefaultPageSize = 100;
 constexpr int kMaxPageSize = 1000;
 
-// A lower bound of Target::MemoryBytes for a cloud: points, normals if any, and the per-point
-// normal, curvature and validity the build adds (the kd-tree comes on top). Checked before any
-// data is read, so a client learns that a target can never fit without sending it.
+// A lower bound of Target::MemoryBytes for a cloud: points, normals if any, the per-point
+// normal, curvature and validity the build adds, and the depth grid of an organised scan (the
+// kd-tree comes on top). Checked before any data is read, so a client learns that a target can
+// never fit without sending it.
 std::uint64_t MinTargetBytes(const v1::CloudHeader& cloud) {
   const std::uint64_t per_point = sizeof(Vec3) * (cloud.has_normals() ? 3 : 2) + sizeof(double) + 1;
-  return cloud.point_count() * per_point;
+  std::uint64_t grid = 0;
+  if (cloud.has_intrinsics()) {
+    grid = GridBytes(PinholeIntrinsics{cloud.intrinsics().width(), cloud.intrinsics().height()});
+  }
+  return cloud.point_count() * per_point + grid;
+}
+
+// The decoded cloud an upload becomes (points, normals), held in flight until it is built.
+std::uint64_t DecodedBytes(const v1::CloudHeader& cloud) {
+  return cloud.point_count() * sizeof(Vec3) * (cloud.has_normals() ? 2 : 1);
 }
 
 void ToProto(const TargetInfo& info, v1::Target* out) {
@@ -35,126 +45,175 @@ void ToProto(const TargetInfo& info, v1::Target* out) {
   out->set_sampling_distance(info.sampling_distance);
   out->set_build_seconds(info.build_seconds);
   out->set_registrations(info.registrations);
+  out->set_content_digest(info.digest);
 }
 
-// One CreateTarget call: header, chunks, decode, build on the pool, insert.
-class CreateTargetHandler {
- public:
-  CreateTargetHandler(ServiceContext& c, grpc::ServerContext* ctx,
-                      grpc::ServerReader<v1::CreateTargetRequest>* reader, RpcScope* scope)
-      : c_(c), ctx_(ctx), reader_(reader), scope_(scope) {}
+// One CreateTarget call on gRPC's callback API: admission (StreamingCall), the header (id,
+// declared size, digest, cache fit), a place in the job queue and the upload's in-flight bytes
+// before any data is read, the chunks (the buffer grows as they arrive), then on a worker:
+// decode, digest, build (cancellable) and insert.
+using CreateTargetReactor = grpc::ServerReadReactor<v1::CreateTargetRequest>;
 
-  absl::Status Run(v1::Target* response) {
-    if (absl::Status s = c_.auth.Check(*ctx_, Access::kUser); !s.ok()) return s;
-    if (!c_.state.accepting()) return absl::UnavailableError("server is shutting down");
-    v1::CreateTargetHeader header;
-    auto expected = ReadHeader(&header);
-    if (!expected.ok()) return expected.status();
-    auto cloud = ReadCloud(header.cloud(), *expected);
-    if (!cloud.ok()) return cloud.status();
-    auto target = BuildOnPool(*std::move(cloud));
-    if (!target.ok()) return target.status();
-    auto info = c_.cache.Insert(header.target_id(), *std::move(target));
-    if (!info.ok()) return info.status();
-    scope_->add_detail(absl::StrCat("points=", info->point_count));
-    ToProto(*info, response);
-    return absl::OkStatus();
+class CreateTargetCall final : public StreamingCall<CreateTargetReactor> {
+ public:
+  CreateTargetCall(ServiceContext& c, grpc::CallbackServerContext* ctx, v1::Target* response)
+      : StreamingCall(c, ctx, "CreateTarget"), response_(response) {}
+
+  void Begin() { ReadNext("the header"); }
+
+  void OnReadDone(bool ok) override {
+    EndWait();
+    if (finished()) return;
+    if (!payload_) {
+      absl::Status status =
+          ok ? OnHeader()
+             : absl::InvalidArgumentError("header: the stream ended before the header");
+      if (!status.ok()) {
+        FinishWith(status);
+      } else if (payload_) {
+        ReadNext("a chunk");
+      }  // else OnHeader finished the call (same content already stored)
+      return;
+    }
+    if (payload_->complete()) {  // one read past the data: the stream must end here
+      if (ok) {
+        FinishWith(absl::InvalidArgumentError(absl::StrCat(
+            "chunk: more messages after the declared ", payload_->received(), " bytes")));
+      } else {
+        Build();
+      }
+      return;
+    }
+    absl::Status status;
+    if (!ok) {
+      status = ctx_->IsCancelled() ? ClientGone() : payload_->EndedEarly();
+    } else if (!request_.has_chunk()) {
+      status = absl::InvalidArgumentError("chunk: expected a chunk, got another header");
+    } else {
+      status = payload_->Append(request_.chunk());
+    }
+    if (!status.ok()) {
+      FinishWith(status);
+      return;
+    }
+    ReadNext(payload_->complete() ? "the end of the upload" : "a chunk");
   }
 
  private:
-  // The first message, validated before any point data is accepted. Returns the payload size.
-  absl::StatusOr<std::uint64_t> ReadHeader(v1::CreateTargetHeader* header) {
-    v1::CreateTargetRequest first;
-    if (!reader_->Read(&first)) {
-      return absl::InvalidArgumentError("header: the stream ended before the header");
-    }
-    if (!first.has_header()) {
+  void ReadNext(const char* what) {
+    BeginWait(what);
+    StartRead(&request_);
+  }
+
+  void Abandoned() override { cancelled_->store(true); }
+
+  absl::Status OnHeader() {
+    if (!request_.has_header()) {
       return absl::InvalidArgumentError("header: the first message must be the header");
     }
-    *header = std::move(*first.mutable_header());
-    if (absl::Status s = ValidateTargetId(header->target_id(), "header.target_id"); !s.ok()) {
+    header_ = std::move(*request_.mutable_header());
+    if (absl::Status s = ValidateTargetId(header_.target_id(), "header.target_id"); !s.ok()) {
       return s;
     }
-    scope_->set_target_id(header->target_id());
-    auto expected = wire::CheckCloudHeader(header->cloud(), c_.config.max_points, "header.cloud");
-    if (!expected.ok()) return expected.status();
-    if (absl::Status s =
-            c_.cache.CheckCanCreate(header->target_id(), MinTargetBytes(header->cloud()));
-        !s.ok()) {
-      return s;
-    }
-    return expected;
-  }
-
-  absl::StatusOr<PointCloud> ReadCloud(const v1::CloudHeader& header, std::uint64_t expected) {
-    auto payload = ReadPayload(expected);
-    if (!payload.ok()) return payload.status();
-    return wire::DecodeCloud(header, *payload, "cloud");
-  }
-
-  // The chunks after the header; nothing may follow the declared bytes.
-  absl::StatusOr<std::string> ReadPayload(std::uint64_t expected) {
-    v1::CreateTargetRequest message;
-    auto next_chunk = [&]() -> absl::StatusOr<const v1::CloudChunk*> {
-      if (!reader_->Read(&message)) {
-        if (ctx_->IsCancelled()) return absl::CancelledError("client cancelled the upload");
-        return nullptr;
-      }
-      if (!message.has_chunk()) {
-        return absl::InvalidArgumentError("chunk: expected a chunk, got another header");
-      }
-      return &message.chunk();
-    };
-    auto payload = ReadChunkedPayload(expected, c_.config.max_chunk_bytes, "chunk", next_chunk);
-    if (!payload.ok()) return payload.status();
-    if (reader_->Read(&message)) {
+    scope_.set_target_id(header_.target_id());
+    if (!header_.content_digest().empty() && header_.content_digest().rfind("sha256:", 0) != 0) {
       return absl::InvalidArgumentError(
-          absl::StrCat("chunk: more messages after the declared ", expected, " bytes"));
+          "header.content_digest: must be \"sha256:\" + 64 hex digits (Target.content_digest)");
     }
-    return payload;
+    auto expected = wire::CheckCloudHeader(header_.cloud(), c_.config.max_points, "header.cloud");
+    if (!expected.ok()) return expected.status();
+    auto existing = c_.cache.CheckCanCreate(header_.target_id(), MinTargetBytes(header_.cloud()),
+                                            header_.content_digest());
+    if (!existing.ok()) return existing.status();
+    if (existing->has_value()) {  // the same content is there: nothing to send
+      scope_.add_detail("unchanged=true");
+      FinishWith(absl::OkStatus(), [&] { ToProto(**existing, response_); });
+      return absl::OkStatus();
+    }
+    auto slot = c_.jobs.Reserve();
+    if (!slot.ok()) return slot.status();
+    slot_.emplace(*std::move(slot));
+    auto lease = c_.inflight.TryAcquire(*expected + DecodedBytes(header_.cloud()), "header.cloud");
+    if (!lease.ok()) return lease.status();
+    lease_ = std::make_shared<InFlightBudget::Lease>(*std::move(lease));
+    payload_.emplace(*expected, c_.config.max_chunk_bytes, "chunk");
+    return absl::OkStatus();
   }
 
-  // Building (kd-tree, normals, curvature) is CPU work: it runs on the pool; this thread waits
-  // and gives up when the client does.
-  absl::StatusOr<std::shared_ptr<const Target>> BuildOnPool(PointCloud cloud) {
-    using BuildResult = absl::StatusOr<std::shared_ptr<const Target>>;
-    auto pending = std::make_shared<PendingResult<BuildResult>>();
-    auto input = std::make_shared<PointCloud>(std::move(cloud));
-    auto submitted =
-        c_.jobs.TrySubmit([pending, input] { pending->Set(Target::Build(std::move(*input))); });
-    if (!submitted.ok()) return submitted.status();
-    for (;;) {
-      if (std::optional<BuildResult> built = pending->WaitFor(kPollInterval)) {
-        if (!built->ok()) {
-          return absl::InvalidArgumentError(
-              absl::StrCat("cloud: cannot build the target: ", built->status().message()));
-        }
-        return *std::move(built);
-      }
-      if (ctx_->IsCancelled()) return absl::CancelledError("client cancelled the upload");
-    }
+  // On a worker: decode, digest, build, insert; the call ends when it is done.
+  void Build() {
+    auto payload = std::make_shared<std::string>(payload_->Release());
+    std::weak_ptr<CreateTargetCall> weak = std::static_pointer_cast<CreateTargetCall>(self());
+    auto submitted = slot_->Submit(
+        [this_call = weak, payload, lease = lease_, header = header_, cancelled = cancelled_,
+         &cache = c_.cache] {
+          absl::StatusOr<TargetInfo> built = BuildAndInsert(cache, header, *payload, *cancelled);
+          payload->clear();
+          payload->shrink_to_fit();
+          if (auto call = this_call.lock()) call->Built(std::move(built));
+        },
+        [this_call = weak](absl::Status s) {
+          if (auto call = this_call.lock()) call->Built(std::move(s));
+        });
+    if (!submitted.ok()) FinishWith(submitted.status());
   }
 
-  ServiceContext& c_;
-  grpc::ServerContext* ctx_;
-  grpc::ServerReader<v1::CreateTargetRequest>* reader_;
-  RpcScope* scope_;
+  static absl::StatusOr<TargetInfo> BuildAndInsert(TargetCache& cache,
+                                                   const v1::CreateTargetHeader& header,
+                                                   const std::string& payload,
+                                                   const std::atomic<bool>& cancelled) {
+    auto cloud = wire::DecodeCloud(header.cloud(), payload, "cloud");
+    if (!cloud.ok()) return cloud.status();
+    const std::string digest = CloudDigest(*cloud);
+    if (!header.content_digest().empty() && header.content_digest() != digest) {
+      return absl::InvalidArgumentError(absl::StrCat("header.content_digest: declared ",
+                                                     header.content_digest(),
+                                                     " but the data received has ", digest));
+    }
+    auto existing = cache.Existing(header.target_id(), digest);
+    if (!existing.ok()) return existing.status();
+    if (existing->has_value()) return **existing;
+    auto target = Target::Build(*std::move(cloud), {}, [&] { return cancelled.load(); });
+    if (absl::IsCancelled(target.status())) return target.status();
+    if (!target.ok()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("cloud: cannot build the target: ", target.status().message()));
+    }
+    return cache.Insert(header.target_id(), *std::move(target), digest);
+  }
+
+  void Built(absl::StatusOr<TargetInfo> info) {
+    if (!info.ok()) {
+      FinishWith(absl::IsCancelled(info.status()) ? ClientGone() : info.status());
+      return;
+    }
+    scope_.add_detail(absl::StrCat("points=", info->point_count));
+    FinishWith(absl::OkStatus(), [&] { ToProto(*info, response_); });
+  }
+
+  v1::Target* const response_;  // owned by gRPC; written only when this call finishes it
+  v1::CreateTargetRequest request_;
+  v1::CreateTargetHeader header_;
+  std::optional<wire::PayloadAssembler> payload_;
+  std::optional<JobPool::Slot> slot_;
+  std::shared_ptr<InFlightBudget::Lease> lease_;  // shared with the build: held until it ends
+  std::shared_ptr<std::atomic<bool>> cancelled_ = std::make_shared<std::atomic<bool>>(false);
 };
 
-class TargetServiceImpl final : public v1::TargetService::Service {
+// CreateTarget streams on the callback API; the unary RPCs stay on the sync server's threads.
+class TargetServiceImpl final
+    : public v1::TargetService::WithCallbackMethod_CreateTarget<v1::TargetService::Service> {
  public:
   explicit TargetServiceImpl(ServiceContext& c) : c_(c) {}
 
-  grpc::Status CreateTarget(grpc::ServerContext* ctx,
-                            grpc::ServerReader<v1::CreateTargetRequest>* reader,
-                            v1::Target* response) override {
-    RpcScope scope(c_, "CreateTarget");
-    return scope.Finish(CreateTargetHandler(c_, ctx, reader, &scope).Run(response));
+  CreateTargetReactor* CreateTarget(grpc::CallbackServerContext* ctx,
+                                    v1::Target* response) override {
+    return StreamingCall<CreateTargetReactor>::Launch<CreateTargetCall>(c_, ctx, response);
   }
 
   grpc::Status GetTarget(grpc::ServerContext* ctx, const v1::GetTargetRequest* request,
                          v1::Target* response) override {
-    RpcScope scope(c_, "GetTarget");
+    RpcScope scope(c_, "GetTarget", ctx);
     return scope.Finish([&]() -> absl::Status {
       if (absl::Status s = c_.auth.Check(*ctx, Access::kUser); !s.ok()) return s;
       if (absl::Status s = ValidateTargetId(request->target_id(), "target_id"); !s.ok()) return s;
@@ -168,7 +227,7 @@ class TargetServiceImpl final : public v1::TargetService::Service {
 
   grpc::Status ListTargets(grpc::ServerContext* ctx, const v1::ListTargetsRequest* request,
                            v1::ListTargetsResponse* response) override {
-    RpcScope scope(c_, "ListTargets");
+    RpcScope scope(c_, "ListTargets", ctx);
     return scope.Finish([&]() -> absl::Status {
       if (absl::Status s = c_.auth.Check(*ctx, Access::kUser); !s.ok()) return s;
       if (request->page_size() < 0) {
@@ -196,7 +255,7 @@ class TargetServiceImpl final : public v1::TargetService::Service {
 
   grpc::Status DeleteTarget(grpc::ServerContext* ctx, const v1::DeleteTargetRequest* request,
                             v1::DeleteTargetResponse*) override {
-    RpcScope scope(c_, "DeleteTarget");
+    RpcScope scope(c_, "DeleteTarget", ctx);
     return scope.Finish([&]() -> absl::Status {
       if (absl::Status s = c_.auth.Check(*ctx, Access::kAdmin); !s.ok()) return s;
       if (absl::Status s = ValidateTargetId(request->target_id(), "target_id"); !s.ok()) return s;

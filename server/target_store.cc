@@ -1,11 +1,18 @@
 #include "server/target_store.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 
 #include "absl/strings/str_cat.h"
 #include "mlsreg/io.h"
 #include "nlohmann/json.hpp"
+#include "server/ids.h"
+#include "server/log.h"
 #include "server/server_config.h"
 
 namespace mlsreg::server {
@@ -21,11 +28,28 @@ absl::Status IoError(const std::string& what, const std::string& path, const std
   return absl::UnavailableError(absl::StrCat(what, " '", path, "': ", ec.message()));
 }
 
+// fsync of a file or a directory (O_RDONLY works for both on Linux).
+absl::Status Sync(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    return absl::UnavailableError(
+        absl::StrCat("cannot open '", path, "' to sync it: ", std::strerror(errno)));
+  }
+  const int rc = ::fsync(fd);
+  const int error = errno;
+  ::close(fd);
+  if (rc != 0) {
+    return absl::UnavailableError(absl::StrCat("fsync '", path, "': ", std::strerror(error)));
+  }
+  return absl::OkStatus();
+}
+
 Json MetaToJson(const StoredTargetMeta& meta) {
   Json j = {{"point_count", meta.point_count},
             {"memory_bytes", meta.memory_bytes},
             {"sampling_distance", meta.sampling_distance},
             {"build_seconds", meta.build_seconds}};
+  if (!meta.digest.empty()) j["content_digest"] = meta.digest;
   if (meta.viewpoint) {
     j["viewpoint"] = {meta.viewpoint->x(), meta.viewpoint->y(), meta.viewpoint->z()};
   }
@@ -49,6 +73,10 @@ std::optional<StoredTargetMeta> MetaFromJson(const Json& j) {
   meta.memory_bytes = j["memory_bytes"].get<std::uint64_t>();
   meta.sampling_distance = j["sampling_distance"].get<double>();
   meta.build_seconds = j["build_seconds"].get<double>();
+  if (j.contains("content_digest")) {
+    if (!j["content_digest"].is_string()) return std::nullopt;
+    meta.digest = j["content_digest"].get<std::string>();
+  }
   if (j.contains("viewpoint")) {
     const Json& v = j["viewpoint"];
     if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() ||
@@ -109,6 +137,11 @@ absl::StatusOr<std::vector<TargetStore::Entry>> TargetStore::List() const {
     if (!file.is_regular_file() || file.path().extension() != ".ply") continue;
     Entry entry;
     entry.id = file.path().stem().string();
+    if (!ValidateTargetId(entry.id, "stored target").ok()) {
+      LogLine(absl::StrCat("target store: ignoring '", file.path().string(),
+                           "': its name is not a valid target id"));
+      continue;
+    }
     if (auto meta = ReadMeta(entry.id); meta.ok()) entry.meta = *meta;
     entries.push_back(std::move(entry));
   }
@@ -134,6 +167,12 @@ absl::StatusOr<TargetStore::Staged> TargetStore::Stage(const std::string& id,
     Discard(staged);
     return absl::UnavailableError(absl::StrCat("cannot write '", staged.meta_path, "'"));
   }
+  for (const std::string& path : {staged.cloud_path, staged.meta_path}) {
+    if (absl::Status s = Sync(path); !s.ok()) {
+      Discard(staged);
+      return s;
+    }
+  }
   return staged;
 }
 
@@ -144,7 +183,8 @@ absl::Status TargetStore::Commit(const Staged& staged) {
   if (ec) return IoError("cannot move into place", staged.meta_path, ec);
   fs::rename(staged.cloud_path, CloudPath(staged.id), ec);
   if (ec) return IoError("cannot move into place", staged.cloud_path, ec);
-  return absl::OkStatus();
+  // The renames are durable once the directory is.
+  return Sync((fs::path(dir_) / kTargetsDir).string());
 }
 
 void TargetStore::Discard(const Staged& staged) {
@@ -168,7 +208,7 @@ absl::Status TargetStore::Remove(const std::string& id) {
   fs::remove(CloudPath(id), ec);  // the target is gone from here on
   if (ec) return IoError("cannot remove", CloudPath(id), ec);
   fs::remove(MetaPath(id), ec);
-  return absl::OkStatus();
+  return Sync((fs::path(dir_) / kTargetsDir).string());
 }
 
 }  // namespace mlsreg::server

@@ -3,8 +3,12 @@
 //   targets/<id>.ply   the cloud as uploaded (binary PLY, doubles: bit-exact round trip)
 //   targets/<id>.json  what the server knew about it (point count, d, memory, viewpoint)
 //   tmp/               files being written; moved into targets/ by rename(), cleared at start
-// A target exists on disk iff its .ply exists. Ids are validated ([A-Za-z0-9._-]) before they
-// get here, so they are safe file names.
+// A target exists on disk iff its .ply exists. Ids are validated ([A-Za-z0-9._-], no leading
+// '.') before they get here, so they are safe file names; files in targets/ whose names are not
+// valid ids (put there by hand) are ignored.
+//
+// Durability: both files are fsync'ed before they are renamed into place and the directory is
+// fsync'ed after, so a target whose upload succeeded survives a power loss (docs/service.md).
 #pragma once
 
 #include <atomic>
@@ -28,6 +32,7 @@ struct StoredTargetMeta {
   double build_seconds = 0.0;
   std::optional<Vec3> viewpoint;                // PLY has no place for it
   std::optional<PinholeIntrinsics> intrinsics;  // organised scans (reverse calibration)
+  std::string digest;                           // CloudDigest; empty in files of older versions
 };
 
 class TargetStore {

@@ -74,6 +74,17 @@ absl::StatusOr<CoarsePhaseFilters> ParseCoarsePhaseFilters(std::string_view name
                                     "' (known: all, normal, none)");
 }
 
+bool NeedsOrganisedTarget(Method method) {
+  return method == Method::kRcBl || method == Method::kRcP;
+}
+
+absl::Status OrganisedTargetRequired(Method method) {
+  return absl::FailedPreconditionError(
+      "method " + std::string(MethodName(method)) +
+      " needs an organised target with pinhole intrinsics (a depth image); this target "
+      "has none (give the target file a .intrinsics sidecar, see depth_grid.h)");
+}
+
 std::string_view TerminationName(Termination termination) {
   switch (termination) {
     case Termination::kConverged:
@@ -445,12 +456,7 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
       break;
     case Method::kRcBl:
     case Method::kRcP:
-      if (!target.grid()) {
-        return absl::FailedPreconditionError(
-            "method " + std::string(MethodName(options.method)) +
-            " needs an organised target with pinhole intrinsics (a depth image); this target "
-            "has none (give the target file a .intrinsics sidecar, see depth_grid.h)");
-      }
+      if (!target.grid()) return OrganisedTargetRequired(options.method);
       result = RunSparseIcp(target, source, initial, options, callbacks, start, 0);
       break;
     case Method::kStSicp: {

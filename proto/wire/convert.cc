@@ -185,13 +185,22 @@ void EncodeCloud(const PointCloud& cloud, v1::ScalarType scalar_type, v1::CloudH
   }
 }
 
-PayloadAssembler::PayloadAssembler(std::uint64_t expected_bytes, std::string field)
-    : expected_(expected_bytes), field_(std::move(field)) {
-  // Reserve only what was declared and validated against the limits.
-  payload_.reserve(expected_bytes);
+PayloadAssembler::PayloadAssembler(std::uint64_t expected_bytes, std::size_t max_chunk_bytes,
+                                   std::string field)
+    : expected_(expected_bytes), max_chunk_bytes_(max_chunk_bytes), field_(std::move(field)) {}
+
+absl::Status PayloadAssembler::EndedEarly() const {
+  return absl::InvalidArgumentError(absl::StrCat(
+      field_, ": the stream ended after ", payload_.size(), " of ", expected_, " declared bytes"));
 }
 
 absl::Status PayloadAssembler::Append(const v1::CloudChunk& chunk) {
+  // Checked before appending: the limit is what keeps one message's memory bounded.
+  if (chunk.data().size() > max_chunk_bytes_) {
+    return absl::InvalidArgumentError(absl::StrCat(field_, ".data: ", chunk.data().size(),
+                                                   " bytes exceed the limit of ", max_chunk_bytes_,
+                                                   " bytes per chunk"));
+  }
   if (chunk.offset() != payload_.size()) {
     return absl::InvalidArgumentError(
         absl::StrCat(field_, ".offset: chunk at byte ", chunk.offset(),
@@ -201,6 +210,12 @@ absl::Status PayloadAssembler::Append(const v1::CloudChunk& chunk) {
     return absl::InvalidArgumentError(
         absl::StrCat(field_, ".data: ", payload_.size() + chunk.data().size(),
                      " bytes exceed the declared ", expected_, " bytes"));
+  }
+  // Doubling keeps appends amortised O(1); capping at the total keeps the buffer exact.
+  const std::size_t needed = payload_.size() + chunk.data().size();
+  if (needed > payload_.capacity()) {
+    payload_.reserve(static_cast<std::size_t>(
+        std::min<std::uint64_t>(expected_, std::max(needed, 2 * payload_.capacity()))));
   }
   payload_.append(chunk.data());
   return absl::OkStatus();

@@ -19,8 +19,11 @@ A=$MLSREG_SERVER_ADDRESS
 "$MLSREG" targets upload --server "$A" --id bun045 data/bunny/bun045.ply > "$work/upload.txt"
 grep -q "^bun045 .*ready .*40097 points" "$work/upload.txt" || fail "upload: $(cat "$work/upload.txt")"
 "$MLSREG" targets list --server "$A" | grep -q "^1 targets" || fail "list"
-if "$MLSREG" targets upload --server "$A" --id bun045 data/bunny/bun045.ply 2> "$work/dup.txt"; then
-  fail "duplicate upload succeeded"
+# The same id with the same content is idempotent; with other content it is refused.
+"$MLSREG" targets upload --server "$A" --id bun045 data/bunny/bun045.ply > "$work/again.txt" ||
+  fail "re-upload of the same content failed"
+if "$MLSREG" targets upload --server "$A" --id bun045 data/bunny/bun000.ply 2> "$work/dup.txt"; then
+  fail "upload of other content under a taken id succeeded"
 fi
 grep -q "ALREADY_EXISTS" "$work/dup.txt" || fail "duplicate: $(cat "$work/dup.txt")"
 if "$MLSREG" targets get --server "$A" nope 2> "$work/nf.txt"; then fail "unknown target found"; fi

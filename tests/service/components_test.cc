@@ -7,10 +7,14 @@
 #include <fstream>
 #include <thread>
 
+#include "mlsreg/cloud_digest.h"
 #include "server/auth.h"
+#include "server/inflight_budget.h"
 #include "server/job_pool.h"
 #include "server/registration_job.h"
+#include "server/retry_hint.h"
 #include "server/server_config.h"
+#include "server/stream_guard.h"
 #include "server/target_cache.h"
 #include "support/synthetic.h"
 
@@ -71,10 +75,13 @@ TEST(ServerConfigTest, RefusesPlaintextOnRemoteAddressesAndUnreadableCertificate
   config.allow_insecure_remote = true;
   EXPECT_TRUE(Validate(config).ok());
 
-  for (const char* loopback : {"127.0.0.1:1", "localhost:1", "[::1]:1", "unix:/tmp/x.sock"}) {
+  for (const char* loopback : {"127.0.0.1:1", "127.1.2.3:1", "localhost:1", "[::1]:1",
+                               "[::ffff:127.0.0.1]:1", "unix:/tmp/x.sock"}) {
     EXPECT_TRUE(IsLoopbackAddress(loopback)) << loopback;
   }
-  for (const char* remote : {"0.0.0.0:1", "[::]:1", "10.0.0.1:1", "example.com:1"}) {
+  // Host names resolve to anything, whatever they start with.
+  for (const char* remote : {"0.0.0.0:1", "[::]:1", "10.0.0.1:1", "example.com:1",
+                             "127.example.com:1", "127.0.0.1.nip.io:1", "1270.0.0.1:1"}) {
     EXPECT_FALSE(IsLoopbackAddress(remote)) << remote;
   }
 
@@ -126,6 +133,92 @@ TEST(JobPoolTest, AdmitsOneRunningAndCapacityQueuedJobsThenRefuses) {
   pool.Shutdown();  // drains: the queued job runs too
   EXPECT_EQ(started.load(), 2);
   EXPECT_EQ(pool.TrySubmit([] {}).status().code(), absl::StatusCode::kUnavailable);
+}
+
+// A job that throws (std::bad_alloc from a huge allocation, say) fails alone: its caller hears
+// INTERNAL naming the exception and the worker takes the next job.
+TEST(JobPoolTest, AJobThatThrowsFailsWithInternalAndTheWorkerGoesOn) {
+  JobPool pool(/*workers=*/1, /*queue_capacity=*/4);
+  std::atomic<int> failures{0};
+  std::string message;
+  std::mutex mutex;
+  ASSERT_TRUE(pool.TrySubmit([] { throw std::bad_alloc(); },
+                             [&](absl::Status s) {
+                               std::lock_guard<std::mutex> lock(mutex);
+                               EXPECT_EQ(s.code(), absl::StatusCode::kInternal);
+                               message = std::string(s.message());
+                               failures.fetch_add(1);
+                             })
+                  .ok());
+  std::atomic<bool> ran{false};
+  ASSERT_TRUE(pool.TrySubmit([&] { ran.store(true); }).ok());
+  pool.Shutdown();
+  EXPECT_EQ(failures.load(), 1);
+  EXPECT_TRUE(ran.load());
+  EXPECT_NE(message.find("bad_alloc"), std::string::npos) << message;
+}
+
+// Admission before transfer: a reserved place counts against the queue at once, and gives it
+// back when the call never submits (its client went away mid-upload).
+TEST(JobPoolTest, ReservedPlacesCountAndAreReleasedUnused) {
+  std::atomic<bool> released{false};
+  JobPool pool(/*workers=*/1, /*queue_capacity=*/1);
+  const std::shared_ptr<void> release(nullptr, [&](void*) { released.store(true); });
+  ASSERT_TRUE(pool.TrySubmit([&] {
+                    while (!released.load())
+                      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+                  })
+                  .ok());
+  for (int i = 0; i < 500 && pool.active() != 1; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  ASSERT_EQ(pool.active(), 1);
+  {
+    auto slot = pool.Reserve();
+    ASSERT_TRUE(slot.ok());
+    EXPECT_EQ(pool.queued(), 1);
+    EXPECT_EQ(pool.Reserve().status().code(), absl::StatusCode::kResourceExhausted);
+  }  // unused: the place is free again
+  EXPECT_EQ(pool.queued(), 0);
+  auto slot = pool.Reserve();
+  ASSERT_TRUE(slot.ok());
+  auto position = slot->Submit([] {});
+  ASSERT_TRUE(position.ok());
+  EXPECT_EQ(*position, 0);
+  released.store(true);
+}
+
+// ---------------------------------------------------------------------------- budgets, streams
+
+TEST(InFlightBudgetTest, LeasesAddUpTransientAndPermanentRefusalsDiffer) {
+  InFlightBudget budget(1000);
+  auto a = budget.TryAcquire(600, "header.source");
+  ASSERT_TRUE(a.ok());
+  auto b = budget.TryAcquire(600, "header.source");
+  EXPECT_EQ(b.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_NE(b.status().message().find("header.source"), std::string::npos);
+  EXPECT_EQ(RetryAfterValue(b.status()), "200");
+  auto never = budget.TryAcquire(1001, "header.cloud");
+  EXPECT_EQ(never.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_EQ(RetryAfterValue(never.status()), "-1");
+  a->Release();
+  EXPECT_EQ(budget.used(), 0u);
+  EXPECT_TRUE(budget.TryAcquire(1000, "x").ok());  // released at once when the lease goes
+  EXPECT_EQ(budget.used(), 0u);
+}
+
+TEST(PeerStreamLimiterTest, LimitsEachPeerHostNotEachConnection) {
+  EXPECT_EQ(PeerHost("ipv4:127.0.0.1:40000"), "ipv4:127.0.0.1");
+  EXPECT_EQ(PeerHost("ipv6:[::1]:40000"), "ipv6:[::1]");
+  PeerStreamLimiter limiter(2);
+  auto a = limiter.Open("ipv4:10.0.0.1:1000");
+  auto b = limiter.Open("ipv4:10.0.0.1:1001");
+  ASSERT_TRUE(a.ok() && b.ok());
+  auto c = limiter.Open("ipv4:10.0.0.1:1002");
+  EXPECT_EQ(c.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_TRUE(limiter.Open("ipv4:10.0.0.2:1000").ok());  // another host is not affected
+  { PeerStreamLimiter::Ticket gone = *std::move(a); }
+  EXPECT_TRUE(limiter.Open("ipv4:10.0.0.1:1003").ok());
 }
 
 // ---------------------------------------------------------------------------- registration job
@@ -204,6 +297,13 @@ std::shared_ptr<const Target> SmallTarget(std::uint64_t seed) {
   return *built;
 }
 
+// Inserts with the target's true content digest, as the upload path does.
+absl::StatusOr<TargetInfo> Insert(TargetCache& cache, const std::string& id,
+                                  std::shared_ptr<const Target> target) {
+  const std::string digest = CloudDigest(target->cloud());
+  return cache.Insert(id, std::move(target), digest);
+}
+
 TEST(TargetCacheTest, EvictsTheLeastRecentlyUsedIdleTargetNeverOneInUse) {
   auto a = SmallTarget(1), b = SmallTarget(2), c = SmallTarget(3);
   const std::uint64_t size = std::max({a->MemoryBytes(), b->MemoryBytes(), c->MemoryBytes()});
@@ -211,25 +311,74 @@ TEST(TargetCacheTest, EvictsTheLeastRecentlyUsedIdleTargetNeverOneInUse) {
   ASSERT_TRUE(cache.ok());
   TargetCache& targets = **cache;
   // Handed over: a reference kept here would count as a registration using the target.
-  ASSERT_TRUE(targets.Insert("a", std::move(a)).ok());
-  ASSERT_TRUE(targets.Insert("b", std::move(b)).ok());
-  EXPECT_EQ(targets.Insert("a", SmallTarget(5)).status().code(), absl::StatusCode::kAlreadyExists);
+  ASSERT_TRUE(Insert(targets, "a", std::move(a)).ok());
+  ASSERT_TRUE(Insert(targets, "b", std::move(b)).ok());
+  EXPECT_EQ(Insert(targets, "a", SmallTarget(5)).status().code(), absl::StatusCode::kAlreadyExists);
 
   // "a" is older, but a registration holds it: "b" is the one to go.
   auto held = targets.Peek("a");
   ASSERT_TRUE(held.ok() && *held);
-  ASSERT_TRUE(targets.Insert("c", std::move(c)).ok());
+  ASSERT_TRUE(Insert(targets, "c", std::move(c)).ok());
   EXPECT_TRUE(targets.Info("a").ok());
   EXPECT_EQ(targets.Info("b").status().code(), absl::StatusCode::kNotFound);  // no store: gone
   EXPECT_EQ(targets.counters().evictions, 1u);
 
   // Everything resident in use: a new target cannot fit, and nothing is evicted trying.
   auto held_c = targets.Peek("c");
-  auto refused = targets.Insert("d", SmallTarget(4));
+  auto refused = Insert(targets, "d", SmallTarget(4));
   EXPECT_EQ(refused.status().code(), absl::StatusCode::kResourceExhausted) << refused.status();
   EXPECT_EQ(targets.counters().entries, 2);
   EXPECT_EQ(targets.counters().evictions, 1u);
-  EXPECT_EQ(targets.CheckCanCreate("e", 3 * size).code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_EQ(RetryAfterValue(refused.status()), "1000");  // in use now: worth a retry later
+  auto never = targets.CheckCanCreate("e", 3 * size, "");
+  EXPECT_EQ(never.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_EQ(RetryAfterValue(never.status()), "-1");  // larger than the budget: never
+}
+
+TEST(TargetCacheTest, TheSameIdWithTheSameContentIsIdempotentAndOtherContentIsRefused) {
+  auto cache = TargetCache::Open(std::uint64_t{1} << 30, nullptr);
+  ASSERT_TRUE(cache.ok());
+  TargetCache& targets = **cache;
+  auto a = SmallTarget(1);
+  const std::string digest = CloudDigest(a->cloud());
+  ASSERT_TRUE(targets.Insert("a", a, digest).ok());
+  // Declared before any data: the same digest is the stored target, another one is refused.
+  auto same = targets.CheckCanCreate("a", 1, digest);
+  ASSERT_TRUE(same.ok()) << same.status();
+  ASSERT_TRUE(same->has_value());
+  EXPECT_EQ((*same)->digest, digest);
+  const std::string other = CloudDigest(SmallTarget(2)->cloud());
+  ASSERT_NE(other, digest);
+  auto different = targets.CheckCanCreate("a", 1, other);
+  EXPECT_EQ(different.status().code(), absl::StatusCode::kAlreadyExists);
+  EXPECT_NE(different.status().message().find(other), std::string::npos);
+  // Not declared: the data decides, so the check lets the upload through.
+  auto undeclared = targets.CheckCanCreate("a", 1, "");
+  ASSERT_TRUE(undeclared.ok());
+  EXPECT_FALSE(undeclared->has_value());
+  // Inserting the same content again succeeds and keeps the first target.
+  auto again = targets.Insert("a", SmallTarget(1), digest);
+  ASSERT_TRUE(again.ok()) << again.status();
+  EXPECT_EQ(targets.counters().entries, 1);
+  EXPECT_EQ(targets.Insert("a", SmallTarget(2), other).status().code(),
+            absl::StatusCode::kAlreadyExists);
+}
+
+TEST(TargetCacheTest, ADeletedTargetInUseStaysCountedUntilReleased) {
+  auto cache = TargetCache::Open(std::uint64_t{1} << 30, nullptr);
+  ASSERT_TRUE(cache.ok());
+  TargetCache& targets = **cache;
+  ASSERT_TRUE(Insert(targets, "a", SmallTarget(1)).ok());
+  const std::uint64_t bytes = targets.counters().bytes;
+  ASSERT_GT(bytes, 0u);
+  {
+    auto held = targets.Peek("a");  // a running registration
+    ASSERT_TRUE(held.ok() && *held);
+    ASSERT_TRUE(targets.Erase("a").ok());
+    EXPECT_EQ(targets.counters().bytes, bytes);  // still in memory
+    EXPECT_EQ(targets.counters().entries, 0);
+  }
+  EXPECT_EQ(targets.counters().bytes, 0u);  // released with the last reference
 }
 
 TEST(TargetCacheTest, StoreKeepsEvictedTargetsAndReloadsThem) {
@@ -243,8 +392,8 @@ TEST(TargetCacheTest, StoreKeepsEvictedTargetsAndReloadsThem) {
     ASSERT_TRUE(store.ok());
     auto cache = TargetCache::Open(budget, *std::move(store));
     ASSERT_TRUE(cache.ok());
-    ASSERT_TRUE((*cache)->Insert("a", std::move(a)).ok());
-    ASSERT_TRUE((*cache)->Insert("b", std::move(b)).ok());
+    ASSERT_TRUE(Insert(**cache, "a", std::move(a)).ok());
+    ASSERT_TRUE(Insert(**cache, "b", std::move(b)).ok());
     auto info = (*cache)->Info("a");
     ASSERT_TRUE(info.ok());
     EXPECT_EQ(info->state, TargetState::kStored);

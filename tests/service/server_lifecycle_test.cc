@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "grpc/health/v1/health.grpc.pb.h"
+#include "mlsreg/wire/convert.h"
 #include "service_test_support.h"
 
 namespace mlsreg::service_test {
@@ -89,11 +90,9 @@ TEST(ServerLifecycleTest, HealthTurnsNotServingAndRunningWorkDrains) {
 }
 
 // grpc.reflection.v1alpha (what grpcurl and friends use), spoken with raw bytes: a
-// ServerReflectionRequest{list_services: "*"} is field 7, length 1, "*".
-TEST(ServerLifecycleTest, ReflectionListsTheServices) {
-  auto server = StartServer(TestConfig());
-  ASSERT_NE(server, nullptr);
-  const Client client = Connect(server->port());
+// ServerReflectionRequest{list_services: "*"} is field 7, length 1, "*". Returns the raw reply
+// bytes, or the call's status when it failed.
+absl::StatusOr<std::string> ListServicesByReflection(const Client& client) {
   grpc::ClientContext context;
   context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
   std::unique_ptr<grpc::ClientReaderWriter<grpc::ByteBuffer, grpc::ByteBuffer>> stream(
@@ -104,22 +103,41 @@ TEST(ServerLifecycleTest, ReflectionListsTheServices) {
               grpc::internal::RpcMethod::BIDI_STREAMING),
           &context));
   grpc::Slice slice(std::string("\x3a\x01*", 3));
-  ASSERT_TRUE(stream->Write(grpc::ByteBuffer(&slice, 1)));
+  stream->Write(grpc::ByteBuffer(&slice, 1));
   stream->WritesDone();
-  grpc::ByteBuffer reply;
-  ASSERT_TRUE(stream->Read(&reply));
-  std::vector<grpc::Slice> slices;
-  ASSERT_TRUE(reply.Dump(&slices).ok());
   std::string bytes;
-  for (const grpc::Slice& s : slices)
-    bytes.append(reinterpret_cast<const char*>(s.begin()), s.size());
+  grpc::ByteBuffer reply;
   while (stream->Read(&reply)) {
+    std::vector<grpc::Slice> slices;
+    if (!reply.Dump(&slices).ok()) break;
+    for (const grpc::Slice& s : slices)
+      bytes.append(reinterpret_cast<const char*>(s.begin()), s.size());
   }
-  EXPECT_TRUE(stream->Finish().ok());
+  const grpc::Status status = stream->Finish();
+  if (!status.ok()) return wire::ToAbslStatus(status);
+  return bytes;
+}
+
+TEST(ServerLifecycleTest, ReflectionListsTheServicesWhenEnabled) {
+  ServerConfig config = TestConfig();
+  config.reflection = true;
+  auto server = StartServer(config);
+  ASSERT_NE(server, nullptr);
+  const Client client = Connect(server->port());
+  auto bytes = ListServicesByReflection(client);
+  ASSERT_TRUE(bytes.ok()) << bytes.status();
   for (const char* service : {"mlsreg.v1.TargetService", "mlsreg.v1.RegistrationService",
                               "mlsreg.v1.StatsService", "grpc.health.v1.Health"}) {
-    EXPECT_NE(bytes.find(service), std::string::npos) << service;
+    EXPECT_NE(bytes->find(service), std::string::npos) << service;
   }
+}
+
+// Reflection answers without a token, so it is off unless asked for.
+TEST(ServerLifecycleTest, ReflectionIsOffByDefault) {
+  auto server = StartServer(TestConfig());
+  ASSERT_NE(server, nullptr);
+  const Client client = Connect(server->port());
+  EXPECT_EQ(ListServicesByReflection(client).status().code(), absl::StatusCode::kUnimplemented);
 }
 
 TEST(ServerLifecycleTest, StatsCountRequestsByCodeAndSummariseLatency) {

@@ -147,7 +147,10 @@ TEST(TargetServiceTest, MalformedUploadsNameTheField) {
   // None of that left anything behind, and the id is still free.
   EXPECT_EQ(Stats(client).cache_entries(), 0);
   ASSERT_TRUE(SendCreate(client, messages, &out).ok());
-  EXPECT_STATUS(SendCreate(client, messages), grpc::StatusCode::ALREADY_EXISTS, "'t'");
+  // The same content again is fine (idempotent); other content under the id is refused.
+  EXPECT_TRUE(SendCreate(client, messages).ok());
+  EXPECT_STATUS(Upload(client, "t", Prefix(small, 50)), grpc::StatusCode::ALREADY_EXISTS,
+                "'t' already exists with other content");
 }
 
 TEST(TargetServiceTest, TargetLargerThanTheBudgetIsRefusedBeforeItsData) {

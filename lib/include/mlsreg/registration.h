@@ -40,6 +40,10 @@ enum class Method {
 std::string_view MethodName(Method method);  // "cp-sicp", "mls-sicp", "st-sicp", ...
 absl::StatusOr<Method> ParseMethod(std::string_view name);
 std::vector<Method> AllMethods();
+// Whether the method needs an organised target (pinhole intrinsics, a depth image).
+bool NeedsOrganisedTarget(Method method);
+// FAILED_PRECONDITION naming the method, for a target without intrinsics.
+absl::Status OrganisedTargetRequired(Method method);
 
 // Every length below is in units of the target's sampling distance d (paper Eq. 11).
 struct MlsParams {

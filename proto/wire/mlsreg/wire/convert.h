@@ -37,11 +37,17 @@ absl::StatusOr<PointCloud> DecodeCloud(const v1::CloudHeader& header, std::strin
 void EncodeCloud(const PointCloud& cloud, v1::ScalarType scalar_type, v1::CloudHeader* header,
                  std::string* payload);
 
-// Appends chunks to a payload, enforcing offset == bytes so far and the declared total.
+// Collects exactly the declared payload from CloudChunk messages: in order (offset == bytes so
+// far), each at most `max_chunk_bytes` of data, never beyond the total. The buffer grows as data
+// arrives (never past the total), so a header that declares a huge cloud costs nothing until its
+// data comes.
 class PayloadAssembler {
  public:
-  PayloadAssembler(std::uint64_t expected_bytes, std::string field);
-  absl::Status Append(const v1::CloudChunk& chunk);  // INVALID_ARGUMENT names "<field>.offset"
+  PayloadAssembler(std::uint64_t expected_bytes, std::size_t max_chunk_bytes, std::string field);
+  // INVALID_ARGUMENT naming "<field>.data" or "<field>.offset".
+  absl::Status Append(const v1::CloudChunk& chunk);
+  // The stream ended before the payload was complete: INVALID_ARGUMENT naming "<field>".
+  absl::Status EndedEarly() const;
   bool complete() const { return payload_.size() == expected_; }
   std::uint64_t received() const { return payload_.size(); }
   std::string_view payload() const { return payload_; }
@@ -49,6 +55,7 @@ class PayloadAssembler {
 
  private:
   std::uint64_t expected_;
+  std::size_t max_chunk_bytes_;
   std::string field_;
   std::string payload_;
 };
