@@ -1,5 +1,5 @@
 // `mlsreg batch`: runs every job of a manifest against a server with bounded concurrency.
-// Each distinct target file is uploaded once (id derived from its name and path); results go to
+// Each distinct target file is uploaded once (id derived from its name and content digest); results go to
 // a CSV or JSONL file (by extension) one row per job; --resume skips jobs already done there.
 #include <atomic>
 #include <cstdio>
@@ -31,17 +31,18 @@ struct BatchArgs {
   ConnectionFlags connection;
 };
 
-// A readable, collision-free id for a target file: "<stem>-<8 hex digits of the path's hash>".
-std::string TargetIdFor(const std::string& path) {
-  const std::string absolute = std::filesystem::absolute(path).lexically_normal().string();
-  std::uint32_t hash = 2166136261u;  // FNV-1a
-  for (unsigned char c : absolute) hash = (hash ^ c) * 16777619u;
+// A readable id that names the target's content: "<stem>-<16 hex digits of its digest>". A
+// file replaced by another scan gets a new id (and is uploaded), the same content the same id
+// whatever its path (and the upload is skipped: the server already has it).
+std::string TargetIdFor(const std::string& path, const std::string& digest) {
   std::string stem;
   for (char c : std::filesystem::path(path).stem().string()) {
     stem +=
         (std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '_' || c == '-') ? c : '_';
   }
-  return absl::StrFormat("%s-%08x", stem.substr(0, 100), hash);
+  if (stem.empty() || stem.front() == '.') stem = "t" + stem;
+  const std::string hex = digest.substr(digest.find(':') + 1, 16);
+  return absl::StrFormat("%s-%s", stem.substr(0, 100), hex);
 }
 
 struct JobOutcome {
@@ -142,23 +143,24 @@ int RunBatch(const BatchArgs& args) {
   std::fprintf(stderr, "mlsreg batch: %zu jobs (%zu already done), concurrency %d\n", jobs.size(),
                already.size(), args.concurrency);
 
-  // Upload each distinct target once; a target that is already there is reused.
+  // Upload each distinct target once, identified by its content; one the server already has
+  // costs a header (CreateTarget is idempotent and the declared digest lets it answer at once).
   std::map<std::string, std::string> target_ids;  // path -> id
   std::map<std::string, std::string> upload_errors;
   for (const RegistrationProblem* p : jobs) {
     if (target_ids.count(p->target_path)) continue;
-    const std::string id = TargetIdFor(p->target_path);
-    target_ids[p->target_path] = id;
-    // Always upload (ALREADY_EXISTS is fine): the client then holds the cloud and can upload it
-    // again if the target's replica loses it or dies and the target moves to another replica.
+    // Always "upload": the client then holds the cloud and can upload it again if the target's
+    // replica loses it or dies and the target moves to another replica.
     auto cloud = ReadPointCloud(p->target_path);
     absl::Status status = cloud.status();
+    std::string id = "(unreadable)";
     if (cloud.ok()) {
-      auto uploaded =
-          (*client)->UploadTarget(id, std::make_shared<const PointCloud>(*std::move(cloud)));
+      auto shared = std::make_shared<const PointCloud>(*std::move(cloud));
+      id = TargetIdFor(p->target_path, (*client)->DigestAsSent(*shared));
+      auto uploaded = (*client)->UploadTarget(id, shared);
       status = uploaded.status();
-      if (status.code() == absl::StatusCode::kAlreadyExists) status = absl::OkStatus();
     }
+    target_ids[p->target_path] = id;
     if (!status.ok()) upload_errors[p->target_path] = std::string(status.message());
     std::fprintf(stderr, "target %s on %s: %s\n", id.c_str(), (*client)->ReplicaFor(id).c_str(),
                  status.ok() ? "ready" : std::string(status.message()).c_str());

@@ -1,6 +1,9 @@
 #include "cli/connection_flags.h"
 
+#include <cctype>
 #include <cstdlib>
+#include <fstream>
+#include <sstream>
 
 namespace mlsreg::cli {
 
@@ -10,7 +13,11 @@ void ConnectionFlags::AddTo(CLI::App& app, bool server_required) {
                                        "targets are spread by id); or dns:///NAME:PORT");
   if (server_required) server->required();
   app.add_option("--token", options_.token,
-                 "bearer token (default: the MLSREG_TOKEN environment variable)");
+                 "bearer token (default: the MLSREG_TOKEN environment variable); shows in ps: "
+                 "prefer --token-file");
+  app.add_option("--token-file", token_file_, "read the bearer token from this file")
+      ->check(CLI::ExistingFile)
+      ->envname("MLSREG_TOKEN_FILE");
   app.add_flag("--tls", options_.tls, "connect with TLS");
   app.add_option("--ca-cert", options_.ca_cert, "PEM file of the CA that signed the server")
       ->check(CLI::ExistingFile);
@@ -27,6 +34,22 @@ void ConnectionFlags::AddTo(CLI::App& app, bool server_required) {
 
 absl::StatusOr<std::unique_ptr<client::Client>> ConnectionFlags::Connect() const {
   client::ClientOptions options = options_;
+  if (!token_file_.empty()) {
+    if (!options.token.empty()) {
+      return absl::InvalidArgumentError("give --token or --token-file, not both");
+    }
+    std::ifstream in(token_file_, std::ios::binary);
+    std::ostringstream text;
+    text << in.rdbuf();
+    options.token = text.str();
+    while (!options.token.empty() && std::isspace(static_cast<unsigned char>(options.token.back()))) {
+      options.token.pop_back();
+    }
+    if (!in || options.token.empty()) {
+      return absl::InvalidArgumentError("--token-file: cannot read a token from '" + token_file_ +
+                                        "'");
+    }
+  }
   if (options.token.empty()) {
     if (const char* token = std::getenv("MLSREG_TOKEN")) options.token = token;
   }

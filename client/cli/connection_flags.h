@@ -1,4 +1,4 @@
-// Flags that say how to reach a server: --server, --token, TLS files, --deadline.
+// Flags that say how to reach a server: --server, --token or --token-file, TLS files, --deadline.
 #pragma once
 
 #include <CLI/CLI.hpp>
@@ -20,6 +20,7 @@ class ConnectionFlags {
 
  private:
   client::ClientOptions options_ = NoServer();
+  std::string token_file_;
   static client::ClientOptions NoServer() {
     client::ClientOptions o;
     o.address.clear();  // local unless --server is given

@@ -20,10 +20,11 @@ int Fail(const char* command, const absl::Status& status) {
 
 void PrintTarget(const client::TargetInfo& t) {
   std::printf(
-      "%-32s %-7s %10llu points  d = %-10.6g %8.1f MiB  built in %.3f s  %llu registrations\n",
+      "%-32s %-7s %10llu points  d = %-10.6g %8.1f MiB  built in %.3f s  %llu registrations  "
+      "%.23s\n",
       t.id.c_str(), t.state.c_str(), static_cast<unsigned long long>(t.points), t.sampling_distance,
-      t.memory_bytes / 1048576.0, t.build_seconds,
-      static_cast<unsigned long long>(t.registrations));
+      t.memory_bytes / 1048576.0, t.build_seconds, static_cast<unsigned long long>(t.registrations),
+      t.digest.c_str());
 }
 
 struct TargetsArgs {

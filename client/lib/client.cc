@@ -13,8 +13,10 @@
 #include <sstream>
 #include <thread>
 
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
+#include "mlsreg/cloud_digest.h"
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "mlsreg/v1/mlsreg.grpc.pb.h"
 #include "mlsreg/wire/convert.h"
@@ -49,7 +51,20 @@ TargetInfo FromProto(const v1::Target& t) {
   info.sampling_distance = t.sampling_distance();
   info.build_seconds = t.build_seconds();
   info.registrations = t.registrations();
+  info.digest = t.content_digest();
   return info;
+}
+
+// The server's retry hint for a failed call: nullopt when it gave none, a negative value for
+// "never", else the delay it asked for.
+std::optional<std::chrono::milliseconds> RetryAfter(const grpc::ClientContext& context) {
+  const auto& trailers = context.GetServerTrailingMetadata();
+  const auto it = trailers.find("mlsreg-retry-after-ms");
+  if (it == trailers.end()) return std::nullopt;
+  long ms = 0;
+  const std::string value(it->second.data(), it->second.size());
+  if (!absl::SimpleAtoi(value, &ms)) return std::nullopt;
+  return std::chrono::milliseconds(ms);
 }
 
 // 64-bit FNV-1a followed by the splitmix64 finaliser: stable across platforms and runs.
@@ -148,19 +163,22 @@ struct Client::Impl {
     if (!options.token.empty()) context.AddMetadata("authorization", "Bearer " + options.token);
   }
 
-  void Backoff(double& backoff) {
+  // Sleeps a jittered backoff, and at least `at_least` (the server's hint).
+  void Backoff(double& backoff, std::chrono::milliseconds at_least = {}) {
     double sleep_seconds;
     {
       std::lock_guard<std::mutex> lock(mutex);
       sleep_seconds = std::uniform_real_distribution<double>(0.0, backoff)(jitter);
     }
+    sleep_seconds = std::max(sleep_seconds, static_cast<double>(at_least.count()) / 1e3);
     std::this_thread::sleep_for(std::chrono::duration<double>(sleep_seconds));
     backoff = std::min(backoff * 2.0, options.max_backoff_seconds);
   }
 
   // Runs `attempt(replica, context)` against `pick()` until it succeeds, fails permanently or
   // runs out of attempts. UNAVAILABLE marks the replica down (the next pick may differ);
-  // UNAVAILABLE and RESOURCE_EXHAUSTED back off exponentially with full jitter.
+  // UNAVAILABLE and RESOURCE_EXHAUSTED back off exponentially with full jitter, and at least as
+  // long as the server's retry hint. A RESOURCE_EXHAUSTED the server calls final is not retried.
   // `on_not_found` (may be empty) may repair a NOT_FOUND once (e.g. by uploading the target)
   // and return true to retry at once.
   template <typename Result, typename Pick, typename Attempt>
@@ -189,19 +207,24 @@ struct Client::Impl {
       if (code != absl::StatusCode::kUnavailable && code != absl::StatusCode::kResourceExhausted) {
         return result;
       }
+      const std::optional<std::chrono::milliseconds> hint = RetryAfter(context);
+      if (hint && hint->count() < 0) return result;  // the server says it can never succeed
       if (n == max_attempts) break;
       if (code == absl::StatusCode::kUnavailable) {
         replica.MarkDown();
         // Another replica can take the call at once; back off only when none is left.
         if (&pick() != &replica) continue;
       }
-      Backoff(backoff);
+      Backoff(backoff, hint.value_or(std::chrono::milliseconds(0)));
     }
     return result;
   }
 
   absl::StatusOr<TargetInfo> UploadTo(Replica& replica, grpc::ClientContext& context,
                                       const std::string& id, const PointCloud& cloud);
+  // What the server will compute for the cloud as encoded.
+  static std::string DigestOfEncoded(const v1::CloudHeader& header, const std::string& payload,
+                                     const PointCloud& cloud);
 };
 
 Client::Client(const ClientOptions& options, std::unique_ptr<Impl> impl)
@@ -280,8 +303,12 @@ absl::StatusOr<TargetInfo> Client::Impl::UploadTo(Replica& replica, grpc::Client
   std::string payload;
   wire::EncodeCloud(cloud, options.float32 ? v1::SCALAR_TYPE_FLOAT32 : v1::SCALAR_TYPE_FLOAT64,
                     header_message.mutable_header()->mutable_cloud(), &payload);
+  header_message.mutable_header()->set_content_digest(
+      DigestOfEncoded(header_message.header().cloud(), payload, cloud));
   v1::Target response;
   auto writer = replica.targets->CreateTarget(&context, &response);
+  // A server that already holds this content (or refuses the header) finishes the call early:
+  // the writes then fail and Finish tells why, or returns the stored target.
   bool open = writer->Write(header_message);
   v1::CreateTargetRequest chunk_message;
   for (std::size_t offset = 0; open && offset < payload.size(); offset += options.chunk_bytes) {
@@ -294,6 +321,22 @@ absl::StatusOr<TargetInfo> Client::Impl::UploadTo(Replica& replica, grpc::Client
   const grpc::Status status = writer->Finish();
   if (!status.ok()) return wire::ToAbslStatus(status);
   return FromProto(response);
+}
+
+std::string Client::Impl::DigestOfEncoded(const v1::CloudHeader& header,
+                                          const std::string& payload, const PointCloud& cloud) {
+  if (header.scalar_type() == v1::SCALAR_TYPE_FLOAT64) return CloudDigest(cloud);  // exact
+  auto decoded = wire::DecodeCloud(header, payload, "cloud");
+  return decoded.ok() ? CloudDigest(*decoded) : std::string();  // the server will refuse it
+}
+
+std::string Client::DigestAsSent(const PointCloud& cloud) const {
+  v1::CloudHeader header;
+  std::string payload;
+  wire::EncodeCloud(cloud,
+                    options_.float32 ? v1::SCALAR_TYPE_FLOAT32 : v1::SCALAR_TYPE_FLOAT64, &header,
+                    &payload);
+  return Impl::DigestOfEncoded(header, payload, cloud);
 }
 
 absl::StatusOr<TargetInfo> Client::UploadTarget(const std::string& id,

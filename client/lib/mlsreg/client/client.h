@@ -1,6 +1,8 @@
 // mlsreg::client::Client: the C++ API of remote mlsreg servers, in domain types. It hides
-// chunking, applies default deadlines, retries transient failures (UNAVAILABLE,
-// RESOURCE_EXHAUSTED) with exponential backoff and jitter, and reuses one channel per server.
+// chunking, applies default deadlines, retries transient failures (UNAVAILABLE, and
+// RESOURCE_EXHAUSTED unless the server said it is final: trailing metadata
+// mlsreg-retry-after-ms = -1) with exponential backoff and jitter, waiting at least as long as the
+// server asked, and reuses one channel per server.
 //
 // With several servers (replicas), every call about a target goes to the replica chosen by
 // rendezvous hashing of the target id, so each replica caches only its share of the targets.
@@ -30,7 +32,7 @@ struct ClientOptions {
   // TLS when client_cert and client_key are given. All are PEM file paths.
   bool tls = false;
   std::string ca_cert, client_cert, client_key;
-  std::string token;                // sent as "authorization: Bearer <token>" when not empty
+  std::string token;  // sent as "authorization: Bearer <token>" when not empty
   double deadline_seconds = 600.0;  // per call
   int max_attempts = 5;             // per call, for transient failures
   double initial_backoff_seconds = 0.2;
@@ -47,6 +49,7 @@ struct TargetInfo {
   double sampling_distance = 0.0;
   double build_seconds = 0.0;
   std::uint64_t registrations = 0;
+  std::string digest;  // "sha256:..." of its content (mlsreg/cloud_digest.h)
 };
 
 struct RemoteRegistrationResult {
@@ -67,12 +70,17 @@ class Client {
   static absl::StatusOr<std::unique_ptr<Client>> Connect(const ClientOptions& options);
   ~Client();
 
-  // Uploads to the target's replica. The client keeps a reference to the cloud so it can upload
-  // it again if a replica loses it (restart without storage, or re-routing).
+  // Uploads to the target's replica, declaring the cloud's digest: when the replica already
+  // holds the same content under `id` it answers at once (no data is sent); other content under
+  // `id` is ALREADY_EXISTS. The client keeps a reference to the cloud so it can upload it again if
+  // a replica loses it (restart without storage, or re-routing).
   absl::StatusOr<TargetInfo> UploadTarget(const std::string& id,
                                           std::shared_ptr<const PointCloud> cloud);
   absl::StatusOr<TargetInfo> UploadTarget(const std::string& id, const PointCloud& cloud);
   absl::StatusOr<TargetInfo> GetTarget(const std::string& id);
+  // The digest the server will compute for `cloud` as this client sends it (float32 rounding
+  // included).
+  std::string DigestAsSent(const PointCloud& cloud) const;
   absl::StatusOr<std::vector<TargetInfo>> ListTargets();  // all pages of every replica
   absl::Status DeleteTarget(const std::string& id);
 
