@@ -10,15 +10,16 @@ namespace mlsreg::server {
 
 JobPool::Slot& JobPool::Slot::operator=(Slot&& other) noexcept {
   if (this != &other) {
-    if (pool_) pool_->Release();
+    if (pool_) pool_->Release(streaming_);
     pool_ = other.pool_;
+    streaming_ = other.streaming_;
     other.pool_ = nullptr;
   }
   return *this;
 }
 
 JobPool::Slot::~Slot() {
-  if (pool_) pool_->Release();
+  if (pool_) pool_->Release(streaming_);
 }
 
 absl::StatusOr<int> JobPool::Slot::Submit(Run run, Fail fail) {
@@ -27,6 +28,7 @@ absl::StatusOr<int> JobPool::Slot::Submit(Run run, Fail fail) {
   pool_ = nullptr;
   std::lock_guard<std::mutex> lock(pool.mutex_);
   --pool.reserved_;
+  if (streaming_) --pool.reserved_streaming_;
   if (pool.joined_) return absl::UnavailableError("job pool is shutting down");
   const int free_workers = static_cast<int>(pool.threads_.size()) - pool.active_;
   const int ahead = std::max(0, static_cast<int>(pool.queue_.size()) - free_workers);
@@ -43,7 +45,11 @@ JobPool::JobPool(int workers, int queue_capacity) : capacity_(std::max(0, queue_
 
 JobPool::~JobPool() { Shutdown(); }
 
-absl::StatusOr<JobPool::Slot> JobPool::Reserve() {
+int JobPool::StreamingShare() const {
+  return std::max(1, (static_cast<int>(threads_.size()) + capacity_) / 2);
+}
+
+absl::StatusOr<JobPool::Slot> JobPool::Reserve(bool streaming) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (stopping_) return absl::UnavailableError("job pool is shutting down");
   // Free workers take the first queued jobs right away, so those do not occupy the queue.
@@ -52,8 +58,15 @@ absl::StatusOr<JobPool::Slot> JobPool::Reserve() {
   if (waiting >= free_workers + capacity_) {
     return absl::ResourceExhaustedError(absl::StrCat("job queue full (capacity ", capacity_, ")"));
   }
+  if (streaming && reserved_streaming_ >= StreamingShare()) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat("job queue: ", reserved_streaming_,
+                     " places are held by calls still receiving data (at most ", StreamingShare(),
+                     "); retry later, or send a small source inline"));
+  }
   ++reserved_;
-  return Slot(this);
+  if (streaming) ++reserved_streaming_;
+  return Slot(this, streaming);
 }
 
 absl::StatusOr<int> JobPool::TrySubmit(Run run, Fail fail) {
@@ -62,9 +75,10 @@ absl::StatusOr<int> JobPool::TrySubmit(Run run, Fail fail) {
   return slot->Submit(std::move(run), std::move(fail));
 }
 
-void JobPool::Release() {
+void JobPool::Release(bool streaming) {
   std::lock_guard<std::mutex> lock(mutex_);
   --reserved_;
+  if (streaming) --reserved_streaming_;
 }
 
 int JobPool::active() const {

@@ -3,7 +3,9 @@
 // queue is refused at once (admission control) instead of piling up.
 //
 // Admission comes before transfer: a call reserves its place (Reserve) as soon as its header is
-// valid, then receives its data, then hands the job to its Slot. A job that throws does not take
+// valid, then receives its data, then hands the job to its Slot. Calls whose data is still to
+// stream in may hold at most half of the places, so clients that stall mid-upload cannot keep
+// the others (whose data came with the header) out. A job that throws does not take
 // the worker down: its `fail` callback gets INTERNAL naming the exception, and the worker goes on.
 #pragma once
 
@@ -28,7 +30,9 @@ class JobPool {
   // destroyed unused.
   class Slot {
    public:
-    Slot(Slot&& other) noexcept : pool_(other.pool_) { other.pool_ = nullptr; }
+    Slot(Slot&& other) noexcept : pool_(other.pool_), streaming_(other.streaming_) {
+      other.pool_ = nullptr;
+    }
     Slot& operator=(Slot&& other) noexcept;
     Slot(const Slot&) = delete;
     Slot& operator=(const Slot&) = delete;
@@ -39,8 +43,9 @@ class JobPool {
 
    private:
     friend class JobPool;
-    explicit Slot(JobPool* pool) : pool_(pool) {}
+    Slot(JobPool* pool, bool streaming) : pool_(pool), streaming_(streaming) {}
     JobPool* pool_;
+    bool streaming_;
   };
 
   // `workers` >= 1 threads; at most `queue_capacity` jobs wait for one (reserved places count).
@@ -49,9 +54,9 @@ class JobPool {
   JobPool(const JobPool&) = delete;
   JobPool& operator=(const JobPool&) = delete;
 
-  // RESOURCE_EXHAUSTED "job queue full (capacity N)" when every place is taken, UNAVAILABLE
-  // after Shutdown began.
-  absl::StatusOr<Slot> Reserve();
+  // RESOURCE_EXHAUSTED "job queue full (capacity N)" when every place is taken (or, for
+  // `streaming` data, every place streaming calls may hold), UNAVAILABLE after Shutdown began.
+  absl::StatusOr<Slot> Reserve(bool streaming = false);
   // Reserve() and Submit() in one.
   absl::StatusOr<int> TrySubmit(Run run, Fail fail = {});
 
@@ -71,14 +76,16 @@ class JobPool {
     Fail fail;
   };
   void WorkerLoop();
-  void Release();  // a Slot gave its place back unused
+  void Release(bool streaming);  // a Slot gave its place back unused
+  int StreamingShare() const;    // places streaming calls may hold
 
   const int capacity_;
   mutable std::mutex mutex_;
   std::condition_variable wake_;
   std::deque<Job> queue_;
-  int reserved_ = 0;  // places held by Slots
-  int active_ = 0;    // workers running a job; the others take queued jobs without delay
+  int reserved_ = 0;            // places held by Slots
+  int reserved_streaming_ = 0;  // of which for calls whose data still streams in
+  int active_ = 0;              // workers running a job; the others take queued jobs without delay
   bool stopping_ = false;
   bool joined_ = false;
   std::vector<std::thread> threads_;

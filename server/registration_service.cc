@@ -104,14 +104,15 @@ class RegisterCall final : public StreamingCall<RegisterReactor> {
     if (!target.ok()) return target.status();
     input_.target = *std::move(target);
 
-    auto slot = c_.jobs.Reserve();
-    if (!slot.ok()) return slot.status();
-    slot_.emplace(*std::move(slot));
+    // The bytes first: a call refused for them never holds a place in the queue, even briefly.
     const std::uint64_t decoded =
         header.source().point_count() * sizeof(Vec3) * (header.source().has_normals() ? 2 : 1);
     auto lease = c_.inflight.TryAcquire(*expected + decoded, "header.source");
     if (!lease.ok()) return lease.status();
     lease_ = std::make_shared<InFlightBudget::Lease>(*std::move(lease));
+    auto slot = c_.jobs.Reserve(/*streaming=*/header.source_data().empty());
+    if (!slot.ok()) return slot.status();
+    slot_.emplace(*std::move(slot));
 
     source_header_ = header.source();
     if (!header.source_data().empty()) {

@@ -130,12 +130,13 @@ class CreateTargetCall final : public StreamingCall<CreateTargetReactor> {
       FinishWith(absl::OkStatus(), [&] { ToProto(**existing, response_); });
       return absl::OkStatus();
     }
-    auto slot = c_.jobs.Reserve();
-    if (!slot.ok()) return slot.status();
-    slot_.emplace(*std::move(slot));
+    // The bytes first: a call refused for them never holds a place in the queue, even briefly.
     auto lease = c_.inflight.TryAcquire(*expected + DecodedBytes(header_.cloud()), "header.cloud");
     if (!lease.ok()) return lease.status();
     lease_ = std::make_shared<InFlightBudget::Lease>(*std::move(lease));
+    auto slot = c_.jobs.Reserve(/*streaming=*/true);
+    if (!slot.ok()) return slot.status();
+    slot_.emplace(*std::move(slot));
     payload_.emplace(*expected, c_.config.max_chunk_bytes, "chunk");
     return absl::OkStatus();
   }

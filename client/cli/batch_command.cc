@@ -1,6 +1,6 @@
 // `mlsreg batch`: runs every job of a manifest against a server with bounded concurrency.
-// Each distinct target file is uploaded once (id derived from its name and content digest); results go to
-// a CSV or JSONL file (by extension) one row per job; --resume skips jobs already done there.
+// Each distinct target file is uploaded once (id derived from its name and content digest); results
+// go to a CSV or JSONL file (by extension) one row per job; --resume skips jobs already done there.
 #include <atomic>
 #include <cstdio>
 #include <filesystem>

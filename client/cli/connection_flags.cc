@@ -42,7 +42,8 @@ absl::StatusOr<std::unique_ptr<client::Client>> ConnectionFlags::Connect() const
     std::ostringstream text;
     text << in.rdbuf();
     options.token = text.str();
-    while (!options.token.empty() && std::isspace(static_cast<unsigned char>(options.token.back()))) {
+    while (!options.token.empty() &&
+           std::isspace(static_cast<unsigned char>(options.token.back()))) {
       options.token.pop_back();
     }
     if (!in || options.token.empty()) {

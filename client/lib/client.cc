@@ -16,8 +16,8 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
-#include "mlsreg/cloud_digest.h"
 #include "grpc/health/v1/health.grpc.pb.h"
+#include "mlsreg/cloud_digest.h"
 #include "mlsreg/v1/mlsreg.grpc.pb.h"
 #include "mlsreg/wire/convert.h"
 
@@ -323,8 +323,8 @@ absl::StatusOr<TargetInfo> Client::Impl::UploadTo(Replica& replica, grpc::Client
   return FromProto(response);
 }
 
-std::string Client::Impl::DigestOfEncoded(const v1::CloudHeader& header,
-                                          const std::string& payload, const PointCloud& cloud) {
+std::string Client::Impl::DigestOfEncoded(const v1::CloudHeader& header, const std::string& payload,
+                                          const PointCloud& cloud) {
   if (header.scalar_type() == v1::SCALAR_TYPE_FLOAT64) return CloudDigest(cloud);  // exact
   auto decoded = wire::DecodeCloud(header, payload, "cloud");
   return decoded.ok() ? CloudDigest(*decoded) : std::string();  // the server will refuse it
@@ -333,9 +333,8 @@ std::string Client::Impl::DigestOfEncoded(const v1::CloudHeader& header,
 std::string Client::DigestAsSent(const PointCloud& cloud) const {
   v1::CloudHeader header;
   std::string payload;
-  wire::EncodeCloud(cloud,
-                    options_.float32 ? v1::SCALAR_TYPE_FLOAT32 : v1::SCALAR_TYPE_FLOAT64, &header,
-                    &payload);
+  wire::EncodeCloud(cloud, options_.float32 ? v1::SCALAR_TYPE_FLOAT32 : v1::SCALAR_TYPE_FLOAT64,
+                    &header, &payload);
   return Impl::DigestOfEncoded(header, payload, cloud);
 }
 

@@ -32,7 +32,7 @@ struct ClientOptions {
   // TLS when client_cert and client_key are given. All are PEM file paths.
   bool tls = false;
   std::string ca_cert, client_cert, client_key;
-  std::string token;  // sent as "authorization: Bearer <token>" when not empty
+  std::string token;                // sent as "authorization: Bearer <token>" when not empty
   double deadline_seconds = 600.0;  // per call
   int max_attempts = 5;             // per call, for transient failures
   double initial_backoff_seconds = 0.2;
