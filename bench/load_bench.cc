@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "absl/strings/str_split.h"
+#include "bench_support.h"
 #include "mlsreg/client/client.h"
 #include "mlsreg/io.h"
 #include "mlsreg/registration.h"
@@ -24,38 +25,9 @@
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double Percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const double position = q * static_cast<double>(v.size() - 1);
-  const std::size_t lo = static_cast<std::size_t>(position);
-  const std::size_t hi = std::min(lo + 1, v.size() - 1);
-  return v[lo] + (v[hi] - v[lo]) * (position - static_cast<double>(lo));
-}
-
-// Resident set size of a process in MiB (VmRSS of /proc/PID/status), or -1.
-double RssMiB(const std::string& pid) {
-  if (pid.empty()) return -1.0;
-  std::ifstream status("/proc/" + pid + "/status");
-  std::string line;
-  while (std::getline(status, line)) {
-    if (line.rfind("VmRSS:", 0) == 0) {
-      std::istringstream in(line.substr(6));
-      double kib = 0;
-      in >> kib;
-      return kib / 1024.0;
-    }
-  }
-  return -1.0;
-}
-
-std::string Arg(int argc, char** argv, const std::string& name, const std::string& fallback) {
-  for (int i = 1; i + 1 < argc; ++i) {
-    if (argv[i] == name) return argv[i + 1];
-  }
-  return fallback;
-}
+using mlsreg::bench::Arg;
+using mlsreg::bench::Percentile;
+using mlsreg::bench::RssMiB;
 
 }  // namespace
 

@@ -31,6 +31,8 @@ absl::Status ValidateIntrinsicsFor(const PinholeIntrinsics& k, std::uint64_t poi
 // The sidecar of a scan file: `<path>.intrinsics`, a text file holding the six numbers
 // "width height fx fy cx cy" (whitespace separated; '#' starts a comment). NotFound when absent.
 absl::StatusOr<PinholeIntrinsics> ReadIntrinsicsSidecar(const std::string& scan_path);
+// The sidecar's text; `source` names it in messages.
+absl::StatusOr<PinholeIntrinsics> ParseIntrinsics(std::string_view text, std::string_view source);
 std::string FormatIntrinsics(const PinholeIntrinsics& k);
 
 class DepthGrid {
