@@ -88,6 +88,53 @@ void BM_Registration(benchmark::State& state) {
 }
 BENCHMARK(BM_Registration)->DenseRange(0, 5)->Unit(benchmark::kMillisecond);
 
+// Adversarial inputs: a cluster of 40,000 identical points (plus two outliers), which made every
+// neighbourhood the whole cloud. Argument 0: the whole target build; 1: the same build told to
+// stop once it started, timing how long the worker stays busy after the request (the
+// cancellation latency a server job sees).
+PointCloud IdenticalCluster() {
+  PointCloud cloud;
+  cloud.points.assign(40'000, Vec3(0.1, 0.2, 0.3));
+  cloud.points.push_back(Vec3(1.0, 0.0, 0.0));
+  cloud.points.push_back(Vec3(0.0, 1.0, 0.0));
+  return cloud;
+}
+
+void BM_DenseClusterTarget(benchmark::State& state) {
+  const PointCloud cloud = IdenticalCluster();
+  const bool cancel = state.range(0) == 1;
+  for (auto _ : state) {
+    bool asked = false;
+    auto built = Target::Build(cloud, {}, [&] {
+      if (!cancel) return false;
+      const bool stop = asked;  // the first question starts the clock, the next says stop
+      asked = true;
+      return stop;
+    });
+    benchmark::DoNotOptimize(built);
+  }
+  state.SetLabel(cancel ? "cancelled at once" : "full build");
+}
+BENCHMARK(BM_DenseClusterTarget)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+// The same cluster as a source of 40,000 samples against the bunny target: one MLS-SICP
+// iteration's preprocessing and matching, or (argument 1) cancelled at the first question.
+void BM_DenseClusterSource(benchmark::State& state) {
+  const BunnyPair& p = Pair();
+  const PointCloud source = IdenticalCluster();
+  RegistrationOptions options;
+  options.num_samples = 40'000;
+  options.max_iterations = 1;
+  const bool cancel = state.range(0) == 1;
+  for (auto _ : state) {
+    RegistrationCallbacks callbacks;
+    callbacks.should_stop = [&] { return cancel; };
+    benchmark::DoNotOptimize(Register(*p.target, source, Matrix4::Identity(), options, callbacks));
+  }
+  state.SetLabel(cancel ? "cancelled at once" : "one iteration");
+}
+BENCHMARK(BM_DenseClusterSource)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
 }  // namespace
 }  // namespace mlsreg
 

@@ -9,6 +9,7 @@ packages=(
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler grpc-proto
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev nlohmann-json3-dev libembree-dev libssl-dev
+  clang-14 libclang-rt-14-dev
   python3 python3-yaml python3-matplotlib
 )
 
