@@ -76,15 +76,24 @@ void Attack(const std::string& address, int count, const std::atomic<bool>& stop
     std::unique_ptr<grpc::ClientWriter<mlsreg::v1::CreateTargetRequest>> writer;
     mlsreg::v1::Target out;
     std::thread waiter;  // blocks in Finish until the server ends the call
+    std::atomic<bool> done{false};
   };
   std::vector<std::unique_ptr<Open>> open;
   std::atomic<int> live{0};
+  std::size_t opened = 0;
   while (!stop.load()) {
-    while (live.load() < count && !stop.load()) {
+    // Reap the calls the server ended.
+    std::erase_if(open, [](std::unique_ptr<Open>& o) {
+      if (!o->done.load()) return false;
+      o->waiter.join();
+      return true;
+    });
+    // Reopen at most one stream per 10 ms: a steady attacker, not a connection flood.
+    if (live.load() < count) {
       auto o = std::make_unique<Open>();
       o->context = std::make_unique<grpc::ClientContext>();
       o->context->set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(120));
-      const bool upload = open.size() % 4 == 3;
+      const bool upload = opened++ % 4 == 3;
       if (upload) {
         o->writer = targets->CreateTarget(o->context.get(), &o->out);
         o->writer->Write(upload_header);
@@ -98,10 +107,11 @@ void Attack(const std::string& address, int count, const std::atomic<bool>& stop
         const grpc::Status status = raw->writer ? raw->writer->Finish() : raw->stream->Finish();
         tally.Add(absl::StatusCodeToString(static_cast<absl::StatusCode>(status.error_code())));
         live.fetch_sub(1);
+        raw->done.store(true);
       });
       open.push_back(std::move(o));
     }
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   for (auto& o : open) o->context->TryCancel();
   for (auto& o : open) o->waiter.join();

@@ -1,5 +1,6 @@
 #include "server/inflight_budget.h"
 
+#include <algorithm>
 #include <string>
 
 #include "absl/strings/str_cat.h"
@@ -7,25 +8,14 @@
 
 namespace mlsreg::server {
 
-InFlightBudget::Lease& InFlightBudget::Lease::operator=(Lease&& other) noexcept {
-  if (this != &other) {
-    Release();
-    budget_ = other.budget_;
-    bytes_ = other.bytes_;
-    other.budget_ = nullptr;
-  }
-  return *this;
+absl::Status InFlightBudget::NoRoom(std::uint64_t bytes, std::string_view field) const {
+  return RetryLater(absl::ResourceExhaustedError(
+      absl::StrCat(std::string(field), ": the server holds ", used_, " of its ", budget_,
+                   " in-flight bytes (max_inflight_bytes) and this request needs ", bytes,
+                   " more; retry later")));
 }
 
-void InFlightBudget::Lease::Release() {
-  if (!budget_) return;
-  std::lock_guard<std::mutex> lock(budget_->mutex_);
-  budget_->used_ -= bytes_;
-  budget_ = nullptr;
-}
-
-absl::StatusOr<InFlightBudget::Lease> InFlightBudget::TryAcquire(std::uint64_t bytes,
-                                                                 std::string_view field) {
+absl::Status InFlightBudget::Check(std::uint64_t bytes, std::string_view field) const {
   if (bytes > budget_) {
     return Permanent(absl::ResourceExhaustedError(
         absl::StrCat(std::string(field), ": the request needs ", bytes,
@@ -33,13 +23,24 @@ absl::StatusOr<InFlightBudget::Lease> InFlightBudget::TryAcquire(std::uint64_t b
                      " bytes (max_inflight_bytes); send a smaller cloud")));
   }
   std::lock_guard<std::mutex> lock(mutex_);
-  if (used_ + bytes > budget_) {
-    return RetryLater(absl::ResourceExhaustedError(
-        absl::StrCat(std::string(field), ": the server holds ", used_, " of its ", budget_,
-                     " in-flight bytes and this request needs ", bytes, "; retry later")));
-  }
-  used_ += bytes;
-  return Lease(this, bytes);
+  if (used_ + bytes > budget_) return NoRoom(bytes, field);
+  return absl::OkStatus();
+}
+
+absl::Status InFlightBudget::Lease::Grow(std::uint64_t bytes, std::string_view field) {
+  std::lock_guard<std::mutex> lock(budget_->mutex_);
+  if (budget_->used_ + bytes > budget_->budget_) return budget_->NoRoom(bytes, field);
+  budget_->used_ += bytes;
+  bytes_ += bytes;
+  return absl::OkStatus();
+}
+
+void InFlightBudget::Lease::Shrink(std::uint64_t bytes) {
+  bytes = std::min(bytes, bytes_);
+  if (bytes == 0) return;
+  std::lock_guard<std::mutex> lock(budget_->mutex_);
+  budget_->used_ -= bytes;
+  bytes_ -= bytes;
 }
 
 std::uint64_t InFlightBudget::used() const {

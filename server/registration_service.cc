@@ -104,15 +104,14 @@ class RegisterCall final : public StreamingCall<RegisterReactor> {
     if (!target.ok()) return target.status();
     input_.target = *std::move(target);
 
-    // The bytes first: a call refused for them never holds a place in the queue, even briefly.
-    const std::uint64_t decoded =
+    // Refused now, before the data is sent, when it could not run: no room in the queue or in
+    // the in-flight budget (payload + decoded cloud). Nothing is held while the data comes.
+    if (absl::Status s = c_.jobs.CheckRoom(); !s.ok()) return s;
+    decoded_bytes_ =
         header.source().point_count() * sizeof(Vec3) * (header.source().has_normals() ? 2 : 1);
-    auto lease = c_.inflight.TryAcquire(*expected + decoded, "header.source");
-    if (!lease.ok()) return lease.status();
-    lease_ = std::make_shared<InFlightBudget::Lease>(*std::move(lease));
-    auto slot = c_.jobs.Reserve(/*streaming=*/header.source_data().empty());
-    if (!slot.ok()) return slot.status();
-    slot_.emplace(*std::move(slot));
+    if (absl::Status s = c_.inflight.Check(*expected + decoded_bytes_, "header.source"); !s.ok()) {
+      return s;
+    }
 
     source_header_ = header.source();
     if (!header.source_data().empty()) {
@@ -122,6 +121,7 @@ class RegisterCall final : public StreamingCall<RegisterReactor> {
                          header.source().point_count(), " points of ",
                          wire::RecordBytes(header.source()), " bytes need ", *expected));
       }
+      if (absl::Status s = lease_->Grow(*expected, "header.source_data"); !s.ok()) return s;
       inline_source_ = std::move(*header.mutable_source_data());
       return absl::OkStatus();
     }
@@ -162,14 +162,21 @@ class RegisterCall final : public StreamingCall<RegisterReactor> {
     if (!request_.has_source_chunk()) {
       return absl::InvalidArgumentError("source_chunk: expected a chunk, got another header");
     }
+    if (absl::Status s = lease_->Grow(request_.source_chunk().data().size(), "source_chunk");
+        !s.ok()) {
+      return s;
+    }
     return payload_->Append(request_.source_chunk());
   }
 
   // Step 5: decode, hand the job to its reserved place, announce it.
   absl::Status Submit() {
     std::string payload = inline_source_ ? std::move(*inline_source_) : payload_->Release();
+    if (absl::Status s = lease_->Grow(decoded_bytes_, "source"); !s.ok()) return s;
     auto source = wire::DecodeCloud(source_header_, payload, "source");
     if (!source.ok()) return source.status();
+    lease_->Shrink(payload.size());
+    std::string().swap(payload);  // the decoded cloud is what stays in flight
     if (absl::Status s = CheckCoordinateRange(*source); !s.ok()) {
       return absl::InvalidArgumentError(absl::StrCat("source: ", s.message()));
     }
@@ -188,8 +195,8 @@ class RegisterCall final : public StreamingCall<RegisterReactor> {
       std::lock_guard<std::mutex> lock(mutex_);
       job_ = job;
     }
-    auto position = slot_->Submit([job, lease = lease_] { job->Run(); },
-                                  [job](absl::Status s) { job->Fail(std::move(s)); });
+    auto position = c_.jobs.TrySubmit([job, lease = lease_] { job->Run(); },
+                                      [job](absl::Status s) { job->Fail(std::move(s)); });
     if (!position.ok()) return position.status();
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -272,8 +279,11 @@ class RegisterCall final : public StreamingCall<RegisterReactor> {
   v1::CloudHeader source_header_;
   std::optional<std::string> inline_source_;
   std::optional<wire::PayloadAssembler> payload_;
-  std::optional<JobPool::Slot> slot_;
-  std::shared_ptr<InFlightBudget::Lease> lease_;  // shared with the job: held until it ends
+  std::uint64_t decoded_bytes_ = 0;
+  // The bytes this call holds: its data as it arrives, then its decoded source; shared with the
+  // job, so held until it ends.
+  std::shared_ptr<InFlightBudget::Lease> lease_ =
+      std::make_shared<InFlightBudget::Lease>(&c_.inflight);
   // Guarded by mutex_:
   std::shared_ptr<RegistrationJob> job_;
   v1::RegisterResponse out_;  // the message being written (alive until OnWriteDone)

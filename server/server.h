@@ -35,6 +35,8 @@ class MlsregServer {
   int port() const { return port_; }
   std::string address() const;                            // host:port actually listened on
   const ServerConfig& config() const { return config_; }  // resolved (workers, queue) values
+  int open_streams() const { return peer_streams_->open_streams(); }  // uploads + registrations
+  std::uint64_t inflight_bytes() const { return inflight_->used(); }
 
   // Graceful stop: health turns NOT_SERVING for every service, new registrations and uploads
   // are refused (UNAVAILABLE), calls in progress get up to drain_seconds to finish; then running

@@ -32,6 +32,9 @@ class StatsServiceImpl final : public v1::StatsService::Service {
     response->set_uptime_seconds(
         std::chrono::duration<double>(std::chrono::steady_clock::now() - c_.started).count());
     response->set_serving(c_.state.accepting());
+    response->set_inflight_bytes(c_.inflight.used());
+    response->set_inflight_budget_bytes(c_.inflight.budget());
+    response->set_open_streams(c_.peer_streams.open_streams());
     return scope.Finish(absl::OkStatus());
   }
 

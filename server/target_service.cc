@@ -90,7 +90,8 @@ class CreateTargetCall final : public StreamingCall<CreateTargetReactor> {
     } else if (!request_.has_chunk()) {
       status = absl::InvalidArgumentError("chunk: expected a chunk, got another header");
     } else {
-      status = payload_->Append(request_.chunk());
+      status = lease_->Grow(request_.chunk().data().size(), "chunk");
+      if (status.ok()) status = payload_->Append(request_.chunk());
     }
     if (!status.ok()) {
       FinishWith(status);
@@ -130,13 +131,14 @@ class CreateTargetCall final : public StreamingCall<CreateTargetReactor> {
       FinishWith(absl::OkStatus(), [&] { ToProto(**existing, response_); });
       return absl::OkStatus();
     }
-    // The bytes first: a call refused for them never holds a place in the queue, even briefly.
-    auto lease = c_.inflight.TryAcquire(*expected + DecodedBytes(header_.cloud()), "header.cloud");
-    if (!lease.ok()) return lease.status();
-    lease_ = std::make_shared<InFlightBudget::Lease>(*std::move(lease));
-    auto slot = c_.jobs.Reserve(/*streaming=*/true);
-    if (!slot.ok()) return slot.status();
-    slot_.emplace(*std::move(slot));
+    // Refused now, before the data is sent, when it could not be built: no room in the queue
+    // or in the in-flight budget. Nothing is held while the data comes.
+    if (absl::Status s = c_.jobs.CheckRoom(); !s.ok()) return s;
+    if (absl::Status s =
+            c_.inflight.Check(*expected + DecodedBytes(header_.cloud()), "header.cloud");
+        !s.ok()) {
+      return s;
+    }
     payload_.emplace(*expected, c_.config.max_chunk_bytes, "chunk");
     return absl::OkStatus();
   }
@@ -144,8 +146,12 @@ class CreateTargetCall final : public StreamingCall<CreateTargetReactor> {
   // On a worker: decode, digest, build, insert; the call ends when it is done.
   void Build() {
     auto payload = std::make_shared<std::string>(payload_->Release());
+    if (absl::Status s = lease_->Grow(DecodedBytes(header_.cloud()), "cloud"); !s.ok()) {
+      FinishWith(s);
+      return;
+    }
     std::weak_ptr<CreateTargetCall> weak = std::static_pointer_cast<CreateTargetCall>(self());
-    auto submitted = slot_->Submit(
+    auto submitted = c_.jobs.TrySubmit(
         [this_call = weak, payload, lease = lease_, header = header_, cancelled = cancelled_,
          &cache = c_.cache] {
           absl::StatusOr<TargetInfo> built = BuildAndInsert(cache, header, *payload, *cancelled);
@@ -196,8 +202,10 @@ class CreateTargetCall final : public StreamingCall<CreateTargetReactor> {
   v1::CreateTargetRequest request_;
   v1::CreateTargetHeader header_;
   std::optional<wire::PayloadAssembler> payload_;
-  std::optional<JobPool::Slot> slot_;
-  std::shared_ptr<InFlightBudget::Lease> lease_;  // shared with the build: held until it ends
+  // The bytes this call holds: its data as it arrives, then its decoded cloud; shared with the
+  // build, so held until it ends.
+  std::shared_ptr<InFlightBudget::Lease> lease_ =
+      std::make_shared<InFlightBudget::Lease>(&c_.inflight);
   std::shared_ptr<std::atomic<bool>> cancelled_ = std::make_shared<std::atomic<bool>>(false);
 };
 

@@ -158,53 +158,51 @@ TEST(JobPoolTest, AJobThatThrowsFailsWithInternalAndTheWorkerGoesOn) {
   EXPECT_NE(message.find("bad_alloc"), std::string::npos) << message;
 }
 
-// Admission before transfer: a reserved place counts against the queue at once, and gives it
-// back when the call never submits (its client went away mid-upload).
-TEST(JobPoolTest, ReservedPlacesCountAndAreReleasedUnused) {
+// Admission before transfer: CheckRoom answers what TrySubmit would, and holds nothing.
+TEST(JobPoolTest, CheckRoomAnswersLikeTrySubmitAndHoldsNothing) {
   std::atomic<bool> released{false};
   JobPool pool(/*workers=*/1, /*queue_capacity=*/1);
   const std::shared_ptr<void> release(nullptr, [&](void*) { released.store(true); });
-  ASSERT_TRUE(pool.TrySubmit([&] {
-                    while (!released.load())
-                      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-                  })
-                  .ok());
+  auto blocker = [&] {
+    while (!released.load()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  };
+  ASSERT_TRUE(pool.TrySubmit(blocker).ok());
   for (int i = 0; i < 500 && pool.active() != 1; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
   ASSERT_EQ(pool.active(), 1);
-  {
-    auto slot = pool.Reserve();
-    ASSERT_TRUE(slot.ok());
-    EXPECT_EQ(pool.queued(), 1);
-    EXPECT_EQ(pool.Reserve().status().code(), absl::StatusCode::kResourceExhausted);
-  }  // unused: the place is free again
-  EXPECT_EQ(pool.queued(), 0);
-  auto slot = pool.Reserve();
-  ASSERT_TRUE(slot.ok());
-  auto position = slot->Submit([] {});
-  ASSERT_TRUE(position.ok());
-  EXPECT_EQ(*position, 0);
+  EXPECT_TRUE(pool.CheckRoom().ok());
+  EXPECT_TRUE(pool.CheckRoom().ok());  // asking twice took nothing
+  ASSERT_TRUE(pool.TrySubmit(blocker).ok());
+  EXPECT_EQ(pool.CheckRoom().code(), absl::StatusCode::kResourceExhausted);
   released.store(true);
 }
 
 // ---------------------------------------------------------------------------- budgets, streams
 
-TEST(InFlightBudgetTest, LeasesAddUpTransientAndPermanentRefusalsDiffer) {
+TEST(InFlightBudgetTest, LeasesGrowWithTheDataAndRefusalsSayWhetherToRetry) {
   InFlightBudget budget(1000);
-  auto a = budget.TryAcquire(600, "header.source");
-  ASSERT_TRUE(a.ok());
-  auto b = budget.TryAcquire(600, "header.source");
-  EXPECT_EQ(b.status().code(), absl::StatusCode::kResourceExhausted);
-  EXPECT_NE(b.status().message().find("header.source"), std::string::npos);
-  EXPECT_EQ(RetryAfterValue(b.status()), "200");
-  auto never = budget.TryAcquire(1001, "header.cloud");
-  EXPECT_EQ(never.status().code(), absl::StatusCode::kResourceExhausted);
-  EXPECT_EQ(RetryAfterValue(never.status()), "-1");
-  a->Release();
+  EXPECT_TRUE(budget.Check(1000, "header.source").ok());  // checks hold nothing
   EXPECT_EQ(budget.used(), 0u);
-  EXPECT_TRUE(budget.TryAcquire(1000, "x").ok());  // released at once when the lease goes
-  EXPECT_EQ(budget.used(), 0u);
+  auto never = budget.Check(1001, "header.cloud");
+  EXPECT_EQ(never.code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_EQ(RetryAfterValue(never), "-1");
+  {
+    InFlightBudget::Lease a(&budget);
+    ASSERT_TRUE(a.Grow(400, "chunk").ok());
+    ASSERT_TRUE(a.Grow(200, "chunk").ok());
+    EXPECT_EQ(budget.used(), 600u);
+    const absl::Status later = budget.Check(600, "header.source");
+    EXPECT_EQ(later.code(), absl::StatusCode::kResourceExhausted);
+    EXPECT_NE(later.message().find("header.source"), std::string::npos);
+    EXPECT_EQ(RetryAfterValue(later), "200");
+    InFlightBudget::Lease b(&budget);
+    EXPECT_EQ(b.Grow(401, "source_chunk").code(), absl::StatusCode::kResourceExhausted);
+    a.Shrink(100);
+    EXPECT_TRUE(b.Grow(401, "source_chunk").ok());
+    EXPECT_EQ(budget.used(), 901u);
+  }
+  EXPECT_EQ(budget.used(), 0u);  // given back with the leases
 }
 
 TEST(PeerStreamLimiterTest, LimitsEachPeerHostNotEachConnection) {
