@@ -20,13 +20,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-#define EXPECT_STATUS(status, expected_code, needle)                                     \
-  do {                                                                                   \
-    const grpc::Status s_ = (status);                                                    \
-    EXPECT_EQ(s_.error_code(), expected_code) << s_.error_message();                     \
-    EXPECT_NE(s_.error_message().find(needle), std::string::npos) << s_.error_message(); \
-  } while (0)
-
 using RegisterStream = grpc::ClientReaderWriter<v1::RegisterRequest, v1::RegisterResponse>;
 
 // Everything still works for a well-behaved client: health, a lookup, an upload and a quick

@@ -13,13 +13,6 @@
 namespace mlsreg::service_test {
 namespace {
 
-#define EXPECT_STATUS(status, expected_code, needle)                                     \
-  do {                                                                                   \
-    const grpc::Status s_ = (status);                                                    \
-    EXPECT_EQ(s_.error_code(), expected_code) << s_.error_message();                     \
-    EXPECT_NE(s_.error_message().find(needle), std::string::npos) << s_.error_message(); \
-  } while (0)
-
 Matrix4 FromWire(const v1::Transform& t) {
   auto m = wire::FromProto(t, "transform");
   EXPECT_TRUE(m.ok()) << m.status();

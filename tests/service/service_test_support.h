@@ -20,6 +20,14 @@
 #include "mlsreg/v1/mlsreg.grpc.pb.h"
 #include "server/server.h"
 
+// A gRPC status with this code whose message contains `needle` (a field name, a limit).
+#define EXPECT_STATUS(status, expected_code, needle)                                     \
+  do {                                                                                   \
+    const grpc::Status s_ = (status);                                                    \
+    EXPECT_EQ(s_.error_code(), expected_code) << s_.error_message();                     \
+    EXPECT_NE(s_.error_message().find(needle), std::string::npos) << s_.error_message(); \
+  } while (0)
+
 namespace mlsreg::service_test {
 
 namespace v1 = ::mlsreg::v1;

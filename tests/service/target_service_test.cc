@@ -14,13 +14,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-#define EXPECT_STATUS(status, expected_code, needle)                                     \
-  do {                                                                                   \
-    const grpc::Status s_ = (status);                                                    \
-    EXPECT_EQ(s_.error_code(), expected_code) << s_.error_message();                     \
-    EXPECT_NE(s_.error_message().find(needle), std::string::npos) << s_.error_message(); \
-  } while (0)
-
 fs::path TempDir(const std::string& name) {
   const fs::path dir =
       fs::temp_directory_path() / ("mlsreg_target_" + name + "_" + std::to_string(::getpid()));
