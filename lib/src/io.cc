@@ -15,6 +15,7 @@
 #include "absl/strings/str_cat.h"
 #include "io_internal.h"
 #include "mlsreg/depth_grid.h"
+#include "mlsreg/intrinsics_sidecar.h"
 
 namespace mlsreg {
 namespace {

@@ -18,6 +18,7 @@
 #include "absl/strings/str_cat.h"
 #include "io_internal.h"
 #include "mlsreg/io.h"
+#include "mlsreg/mesh_io.h"
 #include "mlsreg/triangle_mesh.h"
 
 namespace mlsreg {

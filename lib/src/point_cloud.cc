@@ -1,5 +1,7 @@
 #include "mlsreg/point_cloud.h"
 
+#include <cmath>
+
 #include "absl/strings/str_cat.h"
 
 namespace mlsreg {
@@ -30,6 +32,20 @@ absl::Status ValidatePointCloud(const PointCloud& cloud, std::size_t min_points)
   }
   if (cloud.viewpoint && !cloud.viewpoint->allFinite()) {
     return absl::InvalidArgumentError("viewpoint has a non-finite coordinate");
+  }
+  return absl::OkStatus();
+}
+
+absl::Status ValidateIntrinsics(const PinholeIntrinsics& k, std::string_view field) {
+  const std::string f(field);
+  if (k.width <= 0 || k.height <= 0 || k.width > 100000 || k.height > 100000) {
+    return absl::InvalidArgumentError(f + ": width and height must be in [1, 100000]");
+  }
+  if (!(k.fx > 0.0 && k.fy > 0.0 && std::isfinite(k.fx) && std::isfinite(k.fy))) {
+    return absl::InvalidArgumentError(f + ": focal lengths fx, fy must be positive");
+  }
+  if (!std::isfinite(k.cx) || !std::isfinite(k.cy)) {
+    return absl::InvalidArgumentError(f + ": principal point cx, cy must be finite");
   }
   return absl::OkStatus();
 }

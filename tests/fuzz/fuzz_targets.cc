@@ -6,6 +6,8 @@
 #include <string>
 
 #include "google/protobuf/stubs/logging.h"
+#include "mlsreg/mesh_io.h"
+#include "mlsreg/intrinsics_sidecar.h"
 #include "mlsreg/depth_grid.h"
 #include "mlsreg/io.h"
 #include "mlsreg/registration.h"

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "fuzz_targets.h"
+#include "mlsreg/intrinsics_sidecar.h"
 #include "mlsreg/depth_grid.h"
 #include "mlsreg/io.h"
 #include "mlsreg/registration.h"

@@ -6,6 +6,7 @@
 
 #include <atomic>
 
+#include "mlsreg/intrinsics_sidecar.h"
 #include "mlsreg/cloud_digest.h"
 #include "mlsreg/depth_grid.h"
 #include "mlsreg/fpfh.h"

@@ -5,6 +5,7 @@
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "mlsreg/mesh_io.h"
 #include "mlsreg/io.h"
 #include "mlsreg/triangle_mesh.h"
 

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <random>
 
+#include "mlsreg/intrinsics_sidecar.h"
 #include "mlsreg/correspondence_finders.h"
 #include "mlsreg/depth_grid.h"
 #include "mlsreg/io.h"

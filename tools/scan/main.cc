@@ -10,6 +10,7 @@
 
 #include "CLI/CLI.hpp"
 #include "absl/strings/str_format.h"
+#include "mlsreg/mesh_io.h"
 #include "mlsreg/triangle_mesh.h"
 #include "scan/virtual_scanner.h"
 

@@ -9,6 +9,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "mlsreg/intrinsics_sidecar.h"
 #include "mlsreg/depth_grid.h"
 #include "mlsreg/io.h"
 #include "mlsreg/kd_tree.h"

@@ -13,9 +13,6 @@
 
 namespace mlsreg {
 
-// Positive size and focal lengths, finite principal point; the message names `field`.
-absl::Status ValidateIntrinsics(const PinholeIntrinsics& k, std::string_view field);
-
 // The depth image of a cloud of n points may have at most max(kMinGridPixelCap,
 // kMaxGridPixelsPerPoint * n) pixels: a scan fills a good share of its image, and the cap keeps
 // a request of a few points from allocating a grid of gigabytes (4 bytes per pixel).
@@ -27,13 +24,6 @@ std::uint64_t GridBytes(const PinholeIntrinsics& k);
 // ValidateIntrinsics plus the pixel cap for `point_count` points (InvalidArgument naming `field`).
 absl::Status ValidateIntrinsicsFor(const PinholeIntrinsics& k, std::uint64_t point_count,
                                    std::string_view field);
-
-// The sidecar of a scan file: `<path>.intrinsics`, a text file holding the six numbers
-// "width height fx fy cx cy" (whitespace separated; '#' starts a comment). NotFound when absent.
-absl::StatusOr<PinholeIntrinsics> ReadIntrinsicsSidecar(const std::string& scan_path);
-// The sidecar's text; `source` names it in messages.
-absl::StatusOr<PinholeIntrinsics> ParseIntrinsics(std::string_view text, std::string_view source);
-std::string FormatIntrinsics(const PinholeIntrinsics& k);
 
 class DepthGrid {
  public:

@@ -41,6 +41,10 @@ struct PointCloud {
 // point index.
 absl::Status ValidatePointCloud(const PointCloud& cloud, std::size_t min_points = 1);
 
+// Positive size (at most 100000 x 100000) and focal lengths, finite principal point; the
+// message names `field`.
+absl::Status ValidateIntrinsics(const PinholeIntrinsics& k, std::string_view field);
+
 // Registration refuses coordinates beyond this magnitude (files may hold any finite value): their
 // squared distances overflow or keep no precision at any sampling distance a scan can have.
 inline constexpr double kMaxAbsCoordinate = 1e12;
