@@ -19,8 +19,8 @@
 #include "absl/strings/str_split.h"
 #include "bench_support.h"
 #include "mlsreg/client/client.h"
-#include "mlsreg/io.h"
-#include "mlsreg/registration.h"
+#include "mlsreg/io/io.h"
+#include "mlsreg/registration/registration.h"
 
 namespace {
 

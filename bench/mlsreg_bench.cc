@@ -4,11 +4,11 @@
 
 #include <memory>
 
-#include "mlsreg/io.h"
-#include "mlsreg/manifest.h"
-#include "mlsreg/mls_projector.h"
-#include "mlsreg/registration.h"
-#include "mlsreg/sampling.h"
+#include "mlsreg/geometry/mls_projector.h"
+#include "mlsreg/geometry/sampling.h"
+#include "mlsreg/io/io.h"
+#include "mlsreg/io/manifest.h"
+#include "mlsreg/registration/registration.h"
 
 namespace mlsreg {
 namespace {

@@ -18,8 +18,8 @@
 #include "bench_support.h"
 #include "grpcpp/grpcpp.h"
 #include "mlsreg/client/client.h"
-#include "mlsreg/io.h"
-#include "mlsreg/registration.h"
+#include "mlsreg/io/io.h"
+#include "mlsreg/registration/registration.h"
 #include "mlsreg/v1/mlsreg.grpc.pb.h"
 #include "mlsreg/wire/convert.h"
 

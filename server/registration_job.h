@@ -15,8 +15,8 @@
 #include <string>
 
 #include "absl/status/statusor.h"
-#include "mlsreg/metrics.h"
-#include "mlsreg/registration.h"
+#include "mlsreg/evaluation/metrics.h"
+#include "mlsreg/registration/registration.h"
 #include "server/target_cache.h"
 
 namespace mlsreg::server {

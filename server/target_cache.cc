@@ -3,7 +3,7 @@
 #include <optional>
 
 #include "absl/strings/str_cat.h"
-#include "mlsreg/cloud_digest.h"
+#include "mlsreg/core/cloud_digest.h"
 #include "server/log.h"
 #include "server/retry_hint.h"
 

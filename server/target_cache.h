@@ -18,7 +18,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "mlsreg/target.h"
+#include "mlsreg/geometry/target.h"
 #include "server/target_store.h"
 
 namespace mlsreg::server {

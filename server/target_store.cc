@@ -9,7 +9,7 @@
 #include <fstream>
 
 #include "absl/strings/str_cat.h"
-#include "mlsreg/io.h"
+#include "mlsreg/io/io.h"
 #include "nlohmann/json.hpp"
 #include "server/ids.h"
 #include "server/log.h"

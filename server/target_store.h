@@ -20,7 +20,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "mlsreg/point_cloud.h"
+#include "mlsreg/core/point_cloud.h"
 
 namespace mlsreg::server {
 

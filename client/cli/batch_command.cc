@@ -17,8 +17,8 @@
 #include "cli/connection_flags.h"
 #include "cli/registration_flags.h"
 #include "cli/report.h"
-#include "mlsreg/io.h"
-#include "mlsreg/manifest.h"
+#include "mlsreg/io/io.h"
+#include "mlsreg/io/manifest.h"
 
 namespace mlsreg::cli {
 namespace {

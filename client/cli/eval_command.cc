@@ -15,7 +15,7 @@
 #include "cli/commands.h"
 #include "cli/registration_flags.h"
 #include "cli/report.h"
-#include "mlsreg/evaluation.h"
+#include "mlsreg/evaluation/evaluation.h"
 
 namespace mlsreg::cli {
 namespace {

@@ -8,8 +8,8 @@
 #include "cli/connection_flags.h"
 #include "cli/registration_flags.h"
 #include "cli/report.h"
-#include "mlsreg/io.h"
-#include "mlsreg/metrics.h"
+#include "mlsreg/evaluation/metrics.h"
+#include "mlsreg/io/io.h"
 
 namespace mlsreg::cli {
 namespace {

@@ -5,7 +5,7 @@
 #include <string>
 
 #include "absl/status/statusor.h"
-#include "mlsreg/registration.h"
+#include "mlsreg/registration/registration.h"
 
 namespace mlsreg::cli {
 

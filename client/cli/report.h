@@ -5,8 +5,8 @@
 #include <optional>
 #include <string>
 
-#include "mlsreg/metrics.h"
-#include "mlsreg/registration.h"
+#include "mlsreg/evaluation/metrics.h"
+#include "mlsreg/registration/registration.h"
 
 namespace mlsreg::cli {
 

@@ -6,7 +6,7 @@
 #include "absl/strings/str_format.h"
 #include "cli/commands.h"
 #include "cli/connection_flags.h"
-#include "mlsreg/io.h"
+#include "mlsreg/io/io.h"
 
 namespace mlsreg::cli {
 namespace {

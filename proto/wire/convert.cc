@@ -5,7 +5,7 @@
 #include <cstring>
 
 #include "absl/strings/str_cat.h"
-#include "mlsreg/depth_grid.h"
+#include "mlsreg/geometry/depth_grid.h"
 
 namespace mlsreg::wire {
 

@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "mlsreg/client/client.h"
-#include "mlsreg/registration.h"
+#include "mlsreg/registration/registration.h"
 #include "server/server.h"
 #include "support/synthetic.h"
 

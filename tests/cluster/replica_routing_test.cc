@@ -7,8 +7,8 @@
 #include <thread>
 
 #include "mlsreg/client/client.h"
-#include "mlsreg/io.h"
-#include "mlsreg/registration.h"
+#include "mlsreg/io/io.h"
+#include "mlsreg/registration/registration.h"
 #include "server/server.h"
 
 namespace mlsreg {

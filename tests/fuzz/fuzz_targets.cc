@@ -6,12 +6,12 @@
 #include <string>
 
 #include "google/protobuf/stubs/logging.h"
-#include "mlsreg/mesh_io.h"
-#include "mlsreg/intrinsics_sidecar.h"
-#include "mlsreg/depth_grid.h"
-#include "mlsreg/io.h"
-#include "mlsreg/registration.h"
-#include "mlsreg/triangle_mesh.h"
+#include "mlsreg/core/triangle_mesh.h"
+#include "mlsreg/geometry/depth_grid.h"
+#include "mlsreg/io/intrinsics_sidecar.h"
+#include "mlsreg/io/io.h"
+#include "mlsreg/io/mesh_io.h"
+#include "mlsreg/registration/registration.h"
 #include "mlsreg/v1/mlsreg.pb.h"
 #include "mlsreg/wire/convert.h"
 

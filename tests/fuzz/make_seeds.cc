@@ -9,10 +9,10 @@
 #include <vector>
 
 #include "fuzz_targets.h"
-#include "mlsreg/intrinsics_sidecar.h"
-#include "mlsreg/depth_grid.h"
-#include "mlsreg/io.h"
-#include "mlsreg/registration.h"
+#include "mlsreg/geometry/depth_grid.h"
+#include "mlsreg/io/intrinsics_sidecar.h"
+#include "mlsreg/io/io.h"
+#include "mlsreg/registration/registration.h"
 #include "mlsreg/v1/mlsreg.pb.h"
 #include "mlsreg/wire/convert.h"
 

@@ -8,8 +8,8 @@
 #include <numbers>
 
 #include "gtest/gtest.h"
-#include "mlsreg/io.h"
-#include "mlsreg/manifest.h"
+#include "mlsreg/io/io.h"
+#include "mlsreg/io/manifest.h"
 #include "scan/ray_caster.h"
 
 namespace mlsreg::scan {

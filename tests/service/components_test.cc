@@ -7,7 +7,7 @@
 #include <fstream>
 #include <thread>
 
-#include "mlsreg/cloud_digest.h"
+#include "mlsreg/core/cloud_digest.h"
 #include "server/auth.h"
 #include "server/inflight_budget.h"
 #include "server/job_pool.h"

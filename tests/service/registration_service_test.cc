@@ -6,7 +6,7 @@
 #include <cmath>
 #include <limits>
 
-#include "mlsreg/registration.h"
+#include "mlsreg/registration/registration.h"
 #include "mlsreg/wire/convert.h"
 #include "service_test_support.h"
 

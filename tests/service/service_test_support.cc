@@ -2,9 +2,9 @@
 
 #include <gtest/gtest.h>
 
-#include "mlsreg/io.h"
-#include "mlsreg/manifest.h"
-#include "mlsreg/transform.h"
+#include "mlsreg/core/transform.h"
+#include "mlsreg/io/io.h"
+#include "mlsreg/io/manifest.h"
 #include "mlsreg/wire/convert.h"
 
 namespace mlsreg::service_test {

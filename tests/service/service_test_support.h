@@ -14,9 +14,9 @@
 #include <thread>
 #include <vector>
 
-#include "mlsreg/point_cloud.h"
-#include "mlsreg/registration.h"
-#include "mlsreg/target.h"
+#include "mlsreg/core/point_cloud.h"
+#include "mlsreg/geometry/target.h"
+#include "mlsreg/registration/registration.h"
 #include "mlsreg/v1/mlsreg.grpc.pb.h"
 #include "server/server.h"
 

@@ -6,7 +6,7 @@
 #include <random>
 #include <vector>
 
-#include "mlsreg/point_cloud.h"
+#include "mlsreg/core/point_cloud.h"
 
 namespace mlsreg::testing {
 

@@ -6,14 +6,14 @@
 
 #include <atomic>
 
-#include "mlsreg/intrinsics_sidecar.h"
-#include "mlsreg/cloud_digest.h"
-#include "mlsreg/depth_grid.h"
-#include "mlsreg/fpfh.h"
-#include "mlsreg/kd_tree.h"
-#include "mlsreg/registration.h"
-#include "mlsreg/surface_analysis.h"
-#include "mlsreg/target.h"
+#include "mlsreg/core/cloud_digest.h"
+#include "mlsreg/geometry/depth_grid.h"
+#include "mlsreg/geometry/fpfh.h"
+#include "mlsreg/geometry/kd_tree.h"
+#include "mlsreg/geometry/surface_analysis.h"
+#include "mlsreg/geometry/target.h"
+#include "mlsreg/io/intrinsics_sidecar.h"
+#include "mlsreg/registration/registration.h"
 #include "support/synthetic.h"
 
 namespace mlsreg {

@@ -4,11 +4,11 @@
 #include <cmath>
 #include <numbers>
 
-#include "mlsreg/correspondence_filter.h"
-#include "mlsreg/kd_tree.h"
-#include "mlsreg/metrics.h"
-#include "mlsreg/sampling.h"
-#include "mlsreg/transform.h"
+#include "mlsreg/core/transform.h"
+#include "mlsreg/correspondences/correspondence_filter.h"
+#include "mlsreg/evaluation/metrics.h"
+#include "mlsreg/geometry/kd_tree.h"
+#include "mlsreg/geometry/sampling.h"
 #include "support/synthetic.h"
 
 namespace mlsreg {

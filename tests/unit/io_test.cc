@@ -1,7 +1,7 @@
 // Tests of mlsreg/io.h: round trips, the real bunny scan, hand-built PLY/PCD/XYZ files, every
 // kind of malformed input, file-level errors, and a seeded mutation test.
 
-#include "mlsreg/io.h"
+#include "mlsreg/io/io.h"
 
 #include <unistd.h>
 
@@ -26,7 +26,7 @@
 #include "absl/strings/str_replace.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
-#include "mlsreg/point_cloud.h"
+#include "mlsreg/core/point_cloud.h"
 
 namespace mlsreg {
 namespace {

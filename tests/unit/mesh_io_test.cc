@@ -1,13 +1,14 @@
 // Triangle-mesh readers (OFF, OBJ, PLY faces) and the NumPy .npy point reader.
+#include "mlsreg/io/mesh_io.h"
+
 #include <cstdio>
 #include <fstream>
 #include <string>
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
-#include "mlsreg/mesh_io.h"
-#include "mlsreg/io.h"
-#include "mlsreg/triangle_mesh.h"
+#include "mlsreg/core/triangle_mesh.h"
+#include "mlsreg/io/io.h"
 
 namespace mlsreg {
 namespace {

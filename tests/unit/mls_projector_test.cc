@@ -1,13 +1,13 @@
-#include "mlsreg/mls_projector.h"
+#include "mlsreg/geometry/mls_projector.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
 
-#include "mlsreg/height_field_fit.h"
-#include "mlsreg/kd_tree.h"
-#include "mlsreg/sampling.h"
+#include "mlsreg/geometry/height_field_fit.h"
+#include "mlsreg/geometry/kd_tree.h"
+#include "mlsreg/geometry/sampling.h"
 #include "support/synthetic.h"
 
 namespace mlsreg {

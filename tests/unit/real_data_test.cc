@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <filesystem>
 
-#include "mlsreg/evaluation.h"
+#include "mlsreg/evaluation/evaluation.h"
 
 namespace mlsreg {
 namespace {

@@ -1,11 +1,11 @@
-#include "mlsreg/registration.h"
+#include "mlsreg/registration/registration.h"
 
 #include <gtest/gtest.h>
 
 #include <atomic>
 #include <cctype>
 
-#include "mlsreg/metrics.h"
+#include "mlsreg/evaluation/metrics.h"
 #include "support/synthetic.h"
 
 namespace mlsreg {

@@ -6,12 +6,12 @@
 #include <fstream>
 #include <random>
 
-#include "mlsreg/intrinsics_sidecar.h"
-#include "mlsreg/correspondence_finders.h"
-#include "mlsreg/depth_grid.h"
-#include "mlsreg/io.h"
-#include "mlsreg/metrics.h"
-#include "mlsreg/registration.h"
+#include "mlsreg/correspondences/correspondence_finders.h"
+#include "mlsreg/evaluation/metrics.h"
+#include "mlsreg/geometry/depth_grid.h"
+#include "mlsreg/io/intrinsics_sidecar.h"
+#include "mlsreg/io/io.h"
+#include "mlsreg/registration/registration.h"
 #include "support/synthetic.h"
 
 namespace mlsreg {

@@ -1,4 +1,4 @@
-#include "mlsreg/sparse_icp.h"
+#include "mlsreg/solvers/sparse_icp.h"
 
 #include <gtest/gtest.h>
 
@@ -6,8 +6,8 @@
 #include <limits>
 #include <random>
 
-#include "mlsreg/rigid_motion.h"
-#include "mlsreg/transform.h"
+#include "mlsreg/core/transform.h"
+#include "mlsreg/solvers/rigid_motion.h"
 
 namespace mlsreg {
 namespace {

@@ -1,5 +1,5 @@
 // Target::WithMovedPoints, the smoothed target of ST-SICP.
-#include "mlsreg/target.h"
+#include "mlsreg/geometry/target.h"
 
 #include "gtest/gtest.h"
 #include "support/synthetic.h"

@@ -10,8 +10,8 @@
 
 #include "CLI/CLI.hpp"
 #include "absl/strings/str_format.h"
-#include "mlsreg/mesh_io.h"
-#include "mlsreg/triangle_mesh.h"
+#include "mlsreg/core/triangle_mesh.h"
+#include "mlsreg/io/mesh_io.h"
 #include "scan/virtual_scanner.h"
 
 namespace {

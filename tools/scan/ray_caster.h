@@ -6,7 +6,7 @@
 #include <optional>
 
 #include "absl/status/statusor.h"
-#include "mlsreg/triangle_mesh.h"
+#include "mlsreg/core/triangle_mesh.h"
 
 namespace mlsreg::scan {
 

@@ -9,12 +9,12 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
-#include "mlsreg/intrinsics_sidecar.h"
-#include "mlsreg/depth_grid.h"
-#include "mlsreg/io.h"
-#include "mlsreg/kd_tree.h"
-#include "mlsreg/manifest.h"
-#include "mlsreg/sampling.h"
+#include "mlsreg/geometry/depth_grid.h"
+#include "mlsreg/geometry/kd_tree.h"
+#include "mlsreg/geometry/sampling.h"
+#include "mlsreg/io/intrinsics_sidecar.h"
+#include "mlsreg/io/io.h"
+#include "mlsreg/io/manifest.h"
 
 namespace mlsreg::scan {
 namespace {

@@ -11,9 +11,9 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "mlsreg/point_cloud.h"
-#include "mlsreg/transform.h"
-#include "mlsreg/triangle_mesh.h"
+#include "mlsreg/core/point_cloud.h"
+#include "mlsreg/core/transform.h"
+#include "mlsreg/core/triangle_mesh.h"
 #include "scan/ray_caster.h"
 
 namespace mlsreg::scan {

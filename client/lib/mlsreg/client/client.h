@@ -19,8 +19,8 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "mlsreg/metrics.h"
-#include "mlsreg/registration.h"
+#include "mlsreg/evaluation/metrics.h"
+#include "mlsreg/registration/registration.h"
 
 namespace mlsreg::client {
 

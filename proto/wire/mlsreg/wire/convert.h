@@ -10,7 +10,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "grpcpp/support/status.h"
-#include "mlsreg/registration.h"
+#include "mlsreg/registration/registration.h"
 #include "mlsreg/v1/mlsreg.pb.h"
 
 namespace mlsreg::wire {

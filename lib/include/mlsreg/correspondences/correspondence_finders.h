@@ -1,0 +1,86 @@
+// The correspondence policies: closest point (CP) and MLS projection.
+#pragma once
+
+#include <vector>
+
+#include "mlsreg/correspondences/correspondence.h"
+#include "mlsreg/geometry/mls_projector.h"
+#include "mlsreg/geometry/target.h"
+
+namespace mlsreg {
+
+// Classical ICP matching (paper Eq. 2): the nearest target sample, with the target's precomputed
+// normal and surface variation. Invalid where the target's local analysis failed.
+class ClosestPointFinder final : public CorrespondenceFinder {
+ public:
+  explicit ClosestPointFinder(const Target& target) : target_(target) {}
+  void Find(std::span<const Vec3> queries, std::span<Correspondence> out) override;
+  bool oriented_normals() const override { return target_.surface().oriented; }
+
+ private:
+  const Target& target_;
+};
+
+// MLS correspondences (paper Eq. 7): each query is projected onto the MLS surface of the target.
+// With warm starts, the projection of sample i starts from the query projected onto the tangent
+// plane of sample i's previous projection, when that projection was direct (not seeded from the
+// nearest sample) and lies within the support radius of the query.
+// What happens to queries with fewer than 3 target samples within r (paper Algorithm 1 cannot
+// start there): seed them from their nearest sample until the registration first converges,
+// then drop them (coarse to fine: robust start, and at the end only queries the MLS surface
+// supports); always seed; or always drop (strict Algorithm 1).
+enum class FarQueryPolicy { kSeedUntilConverged, kSeed, kDrop };
+
+class MlsCorrespondenceFinder final : public CorrespondenceFinder {
+ public:
+  MlsCorrespondenceFinder(const Target& target, const MlsOptions& options, bool warm_start,
+                          FarQueryPolicy far_queries = FarQueryPolicy::kSeedUntilConverged);
+  void Find(std::span<const Vec3> queries, std::span<Correspondence> out) override;
+  bool oriented_normals() const override { return oriented_; }
+  bool can_refine() const override { return far_queries_ == FarQueryPolicy::kSeedUntilConverged; }
+  bool foot_points() const override { return true; }
+  void Refine() override;
+
+  // Status of each sample's last projection (for statistics and tests).
+  const std::vector<ProjectionStatus>& last_status() const { return status_; }
+  // Total Algorithm 1 iterations spent in the last Find call.
+  long last_iterations() const { return last_iterations_; }
+
+ private:
+  MlsProjector projector_;
+  bool warm_start_;
+  FarQueryPolicy far_queries_;
+  bool oriented_;
+  double radius_;
+  MlsProjector::Workspace workspace_;
+  std::vector<MlsProjection> previous_;
+  std::vector<ProjectionStatus> status_;
+  long last_iterations_ = 0;
+};
+
+// Reverse calibration (paper section 5.2.1): the query is projected into the target's depth image
+// and its partner is interpolated from the four surrounding samples: bilinearly (RC-BL), or by
+// Phong tessellation (RC-P, Boubekeur and Alexa 2008): the bilinear point projected onto the four
+// samples' tangent planes, the projections blended with the same bilinear weights. Queries are in
+// the target's (camera) frame; one outside the image or next to an empty pixel is invalid.
+class ReverseCalibrationFinder final : public CorrespondenceFinder {
+ public:
+  enum class Interpolation { kBilinear, kPhong };
+  // Phong tessellation's shape factor alpha: the result is (1 - alpha) bilinear + alpha Phong.
+  // Boubekeur and Alexa recommend 3/4: with alpha = 1 the surface overshoots outward by about as
+  // much as the bilinear blend falls short inward (measured on a sphere in the unit tests).
+  static constexpr double kPhongShapeFactor = 0.75;
+  // `target.grid()` must not be null.
+  ReverseCalibrationFinder(const Target& target, Interpolation interpolation,
+                           double phong_shape_factor = kPhongShapeFactor)
+      : target_(target), interpolation_(interpolation), alpha_(phong_shape_factor) {}
+  void Find(std::span<const Vec3> queries, std::span<Correspondence> out) override;
+  bool oriented_normals() const override { return target_.surface().oriented; }
+
+ private:
+  const Target& target_;
+  Interpolation interpolation_;
+  double alpha_;
+};
+
+}  // namespace mlsreg

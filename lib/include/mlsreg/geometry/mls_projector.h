@@ -1,0 +1,88 @@
+// MlsProjector: projects points onto the moving-least-squares surface of a target point set,
+// exactly as the paper's Algorithm 1 (Dutta, Russig, Gumhold 2019, section 4).
+#pragma once
+
+#include <cstdint>
+#include <string_view>
+#include <vector>
+
+#include "mlsreg/core/point_cloud.h"
+#include "mlsreg/geometry/kd_tree.h"
+
+namespace mlsreg {
+
+struct MlsOptions {
+  // Support radius r of the Wendland weight, in the target's units (not in d: callers convert).
+  double radius = 0.0;
+  // Degree g of the bivariate height-field polynomial (paper Table 2: 3).
+  int polynomial_degree = 3;
+  // Iteration cap of Algorithm 1 (paper Table 2: 20).
+  int max_iterations = 20;
+  // Converged when one iteration moves the point by less than this (absolute). 0: 1e-3 * radius.
+  double tolerance = 0.0;
+  // Neighbours are gathered within radius * (1 + search_margin) and reused while the iterate
+  // stays within radius * search_margin of where they were gathered (same result, fewer searches).
+  double search_margin = 0.0;
+  // A query with fewer than 3 target samples within r cannot start Algorithm 1. When true, the
+  // iteration starts from the nearest target sample instead (an MLS-smoothed closest point);
+  // when false such queries fail with kTooFewNeighbors.
+  bool seed_far_queries_from_nearest_sample = true;
+};
+
+enum class ProjectionStatus : std::uint8_t {
+  kOk = 0,
+  kTooFewNeighbors,  // fewer than 3 weighted samples within r of the iterate
+  kDegenerate,       // the neighbourhood is a line or a point; no reference plane exists
+  kNotConverged,     // still moving after max_iterations
+};
+std::string_view ProjectionStatusName(ProjectionStatus status);
+
+struct MlsProjection {
+  Vec3 point = Vec3::Zero();
+  // Surface normal from the gradient of the fitted polynomial, unit length. Its sign follows the
+  // target normals when the projector has oriented ones, and is arbitrary otherwise.
+  Vec3 normal = Vec3::UnitZ();
+  // Surface variation H of the weighted PCA at the final iterate (paper Eq. 8).
+  double curvature = 0.0;
+  ProjectionStatus status = ProjectionStatus::kTooFewNeighbors;
+  int iterations = 0;
+  int neighbors = 0;  // samples with non-zero weight in the last fit
+  // True when the query was too far from the target and the iteration started from its nearest
+  // sample (MlsOptions::seed_far_queries_from_nearest_sample).
+  bool seeded_from_nearest_sample = false;
+};
+
+class MlsProjector {
+ public:
+  // Scratch buffers for one thread. Reusing one keeps projections allocation-free.
+  struct Workspace {
+    RadiusNeighbors candidates;
+    std::vector<double> weights;
+  };
+
+  // `points` and `tree` must outlive the projector. `oriented_normals` (may be null) are per-point
+  // target normals with a meaningful sign, used only to orient the output normals.
+  MlsProjector(const std::vector<Vec3>& points, const KdTree& tree, const MlsOptions& options,
+               const std::vector<Vec3>* oriented_normals = nullptr);
+
+  // Algorithm 1 started at the query itself (s <- p).
+  MlsProjection Project(const Vec3& query, Workspace& workspace) const;
+
+  // Algorithm 1 started at `start` instead of the query (warm start). A good start is the query
+  // projected onto the tangent plane of its previous projection: it keeps the query's tangential
+  // position while skipping the iterations that walk onto the surface.
+  MlsProjection ProjectFrom(const Vec3& start, Workspace& workspace) const;
+
+  const MlsOptions& options() const { return options_; }
+  void set_seed_far_queries_from_nearest_sample(bool seed) {
+    options_.seed_far_queries_from_nearest_sample = seed;
+  }
+
+ private:
+  const std::vector<Vec3>& points_;
+  const KdTree& tree_;
+  const std::vector<Vec3>* oriented_normals_;
+  MlsOptions options_;
+};
+
+}  // namespace mlsreg

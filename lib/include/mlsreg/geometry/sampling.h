@@ -1,0 +1,22 @@
+// Sampling distance (paper Eq. 11) and seeded random subsampling.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "mlsreg/core/point_cloud.h"
+#include "mlsreg/geometry/kd_tree.h"
+
+namespace mlsreg {
+
+// d = mean distance from each point to its nearest other point (paper Eq. 11). Every distance
+// parameter of mlsreg is a multiple of d, so nothing depends on units. Exact duplicates are
+// skipped (they would pull d to zero); returns 0 for fewer than two distinct points.
+double SamplingDistance(const std::vector<Vec3>& points, const KdTree& tree);
+
+// `count` distinct indices in [0, size), drawn uniformly at random with the given seed and
+// returned in ascending order; all indices when count >= size. Same seed, same answer, on every
+// platform (std::mt19937_64 with our own bounded draw).
+std::vector<std::uint32_t> RandomSubsample(std::size_t size, std::size_t count, std::uint64_t seed);
+
+}  // namespace mlsreg

@@ -1,0 +1,65 @@
+// Target: a validated target cloud with everything registrations reuse, built once.
+#pragma once
+
+#include <memory>
+
+#include "absl/status/statusor.h"
+#include "mlsreg/core/point_cloud.h"
+#include "mlsreg/core/stop_check.h"
+#include "mlsreg/geometry/depth_grid.h"
+#include "mlsreg/geometry/kd_tree.h"
+#include "mlsreg/geometry/surface_analysis.h"
+
+namespace mlsreg {
+
+struct TargetOptions {
+  // Radius of the Wendland-weighted PCA giving per-point normals and surface variation (used by
+  // closest-point correspondences and their filters), in units of the sampling distance d.
+  double analysis_radius_d = 5.0;
+  // Minimum number of points accepted.
+  std::size_t min_points = 10;
+};
+
+// Cloud + kd-tree + sampling distance + per-point surface properties. Immutable once built and
+// safe to share between concurrent registrations (all queries are const).
+class Target {
+ public:
+  // CANCELLED when `should_stop` (asked every few hundred points) says stop.
+  static absl::StatusOr<std::shared_ptr<const Target>> Build(PointCloud cloud,
+                                                             const TargetOptions& options = {},
+                                                             const StopCheck& should_stop = {});
+
+  // This target with its points moved (same count and order; ST-SICP's smoothed copy): index,
+  // d, normals and depth grid are rebuilt, the surface variation is kept from this target.
+  // Smoothing flattens surface variation, so rebuilt values would set the curvature filter
+  // against every noisy source.
+  absl::StatusOr<std::shared_ptr<const Target>> WithMovedPoints(std::vector<Vec3> points) const;
+
+  const PointCloud& cloud() const { return cloud_; }
+  const std::vector<Vec3>& points() const { return cloud_.points; }
+  const KdTree& tree() const { return *tree_; }
+  const SurfaceProperties& surface() const { return surface_; }
+  // The organised grid when the cloud carries pinhole intrinsics, else null.
+  const DepthGrid* grid() const { return grid_ ? &*grid_ : nullptr; }
+  // Mean nearest-neighbour distance d (paper Eq. 11).
+  double sampling_distance() const { return sampling_distance_; }
+  const TargetOptions& options() const { return options_; }
+  double build_seconds() const { return build_seconds_; }
+  // Heap bytes held (points, normals, properties, index).
+  std::size_t MemoryBytes() const;
+
+ private:
+  Target() = default;
+  static absl::StatusOr<std::shared_ptr<Target>> BuildMutable(PointCloud cloud,
+                                                              const TargetOptions& options,
+                                                              const StopCheck& should_stop);
+  PointCloud cloud_;
+  std::unique_ptr<KdTree> tree_;
+  SurfaceProperties surface_;
+  std::optional<DepthGrid> grid_;
+  double sampling_distance_ = 0.0;
+  TargetOptions options_;
+  double build_seconds_ = 0.0;
+};
+
+}  // namespace mlsreg

@@ -1,0 +1,46 @@
+// Closed-form and linearised weighted rigid-motion estimators used inside Sparse ICP.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <span>
+
+#include "mlsreg/core/point_cloud.h"
+
+namespace mlsreg {
+
+using RigidTransform = Eigen::Isometry3d;
+
+// Rotation exp([omega]x) (Rodrigues), exact for any angle.
+Eigen::Matrix3d ExpSo3(const Vec3& omega);
+
+// The rigid increment of a Gauss-Newton step over (omega, v): x' = exp([omega]x) x + v, with the
+// exact SO(3) exponential.
+RigidTransform TwistIncrement(const Eigen::Matrix<double, 6, 1>& omega_v);
+
+// Solves the 6x6 normal equations h * step = rhs of a Gauss-Newton step over (omega, v), moving
+// only along directions the data constrain: eigen-directions of h whose eigenvalue is at most
+// 1e-9 of the largest get no motion (e.g. the in-plane translations and the rotation about the
+// normal when every correspondence lies on one plane, where a plain LDLT solve returns steps of
+// 1e10 units). Zero when h is zero or not finite.
+Eigen::Matrix<double, 6, 1> SolveConstrainedStep(const Eigen::Matrix<double, 6, 6>& h,
+                                                 const Eigen::Matrix<double, 6, 1>& rhs);
+
+// argmin_{R,t} sum_i w_i |R x_i + t - y_i|^2 (weighted Kabsch/Umeyama, det-corrected).
+// Entries with w_i = 0 are ignored; identity when the total weight is zero.
+RigidTransform PointToPointMotion(std::span<const Vec3> x, std::span<const Vec3> y,
+                                  std::span<const double> w);
+
+// One Gauss-Newton step of argmin_{R,t} sum_i w_i (n_i . (R x_i + t - y_i) - u_i)^2, linearised
+// in the rotation about the weighted centroid of x, with the rotation rebuilt by the exact SO(3)
+// exponential. Directions the planes do not constrain get no motion (SolveConstrainedStep);
+// identity when the total weight is zero.
+//
+// With tangential_weight = lambda > 0 the objective gains lambda * |P_i (R x_i + t - y_i)|^2,
+// P_i = I - n_i n_i^T: the part of each residual along the tangent plane. For correspondences
+// that are foot points on a smooth surface (MLS), that part starts near zero, so the term only
+// damps sliding along the surface, which the planes alone constrain through curvature.
+RigidTransform PointToPlaneMotion(std::span<const Vec3> x, std::span<const Vec3> y,
+                                  std::span<const Vec3> n, std::span<const double> u,
+                                  std::span<const double> w, double tangential_weight = 0.0);
+
+}  // namespace mlsreg

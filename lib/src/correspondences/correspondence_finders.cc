@@ -1,0 +1,114 @@
+#include "mlsreg/correspondences/correspondence_finders.h"
+
+#include <cmath>
+
+namespace mlsreg {
+
+void ClosestPointFinder::Find(std::span<const Vec3> queries, std::span<Correspondence> out) {
+  const SurfaceProperties& surface = target_.surface();
+  for (std::size_t i = 0; i < queries.size(); ++i) {
+    const Neighbor nn = target_.tree().Nearest(queries[i]);
+    Correspondence& c = out[i];
+    c.point = target_.points()[nn.index];
+    c.normal = surface.normals[nn.index];
+    c.curvature = surface.curvature[nn.index];
+    c.valid = surface.valid[nn.index] != 0;
+  }
+}
+
+MlsCorrespondenceFinder::MlsCorrespondenceFinder(const Target& target, const MlsOptions& options,
+                                                 bool warm_start, FarQueryPolicy far_queries)
+    : projector_(target.points(), target.tree(), options,
+                 target.surface().oriented ? &target.surface().normals : nullptr),
+      warm_start_(warm_start),
+      far_queries_(far_queries),
+      oriented_(target.surface().oriented),
+      radius_(options.radius) {
+  projector_.set_seed_far_queries_from_nearest_sample(far_queries != FarQueryPolicy::kDrop);
+}
+
+void MlsCorrespondenceFinder::Refine() {
+  far_queries_ = FarQueryPolicy::kDrop;
+  projector_.set_seed_far_queries_from_nearest_sample(false);
+}
+
+void MlsCorrespondenceFinder::Find(std::span<const Vec3> queries, std::span<Correspondence> out) {
+  if (previous_.size() != queries.size()) {
+    previous_.assign(queries.size(), MlsProjection{});
+    status_.assign(queries.size(), ProjectionStatus::kTooFewNeighbors);
+  }
+  last_iterations_ = 0;
+  // A projection can take thousands of neighbour visits in dense clusters: ask often.
+  constexpr std::uint32_t kStopInterval = 64;
+  StopPoller stop(should_stop_, kStopInterval);
+  for (std::size_t i = 0; i < queries.size(); ++i) {
+    if (stop.Poll()) return;
+    const Vec3& q = queries[i];
+    MlsProjection& previous = previous_[i];
+    MlsProjection projection;
+    // Warm start only from a direct projection that is still within the support of the query;
+    // otherwise (first iteration, far or boundary queries) run Algorithm 1 from the query.
+    if (warm_start_ && previous.status == ProjectionStatus::kOk &&
+        !previous.seeded_from_nearest_sample &&
+        (q - previous.point).squaredNorm() < radius_ * radius_) {
+      const Vec3 start = q - (q - previous.point).dot(previous.normal) * previous.normal;
+      projection = projector_.ProjectFrom(start, workspace_);
+    } else {
+      projection = projector_.Project(q, workspace_);
+    }
+    last_iterations_ += projection.iterations;
+    Correspondence& c = out[i];
+    c.point = projection.point;
+    c.normal = projection.normal;
+    c.curvature = projection.curvature;
+    c.valid = projection.status == ProjectionStatus::kOk;
+    status_[i] = projection.status;
+    previous = projection;
+  }
+}
+
+void ReverseCalibrationFinder::Find(std::span<const Vec3> queries, std::span<Correspondence> out) {
+  const DepthGrid& grid = *target_.grid();
+  const std::vector<Vec3>& points = target_.points();
+  const SurfaceProperties& surface = target_.surface();
+  for (std::size_t i = 0; i < queries.size(); ++i) {
+    Correspondence& c = out[i];
+    c.valid = false;
+    double u, v;
+    if (!grid.Project(queries[i], u, v)) continue;
+    const int u0 = static_cast<int>(std::floor(u)), v0 = static_cast<int>(std::floor(v));
+    const double a = u - u0, b = v - v0;
+    const std::int32_t corner[4] = {grid.At(u0, v0), grid.At(u0 + 1, v0), grid.At(u0, v0 + 1),
+                                    grid.At(u0 + 1, v0 + 1)};
+    const double weight[4] = {(1 - a) * (1 - b), a * (1 - b), (1 - a) * b, a * b};
+    bool complete = true;
+    for (std::int32_t k : corner) complete = complete && k >= 0 && surface.valid[k];
+    if (!complete) continue;
+    Vec3 bilinear = Vec3::Zero(), normal = Vec3::Zero();
+    double curvature = 0.0;
+    Vec3 n[4];
+    for (int k = 0; k < 4; ++k) {
+      n[k] = surface.normals[corner[k]];
+      // Unoriented normals: make the four agree before blending them.
+      if (k > 0 && n[k].dot(n[0]) < 0.0) n[k] = -n[k];
+      bilinear += weight[k] * points[corner[k]];
+      normal += weight[k] * n[k];
+      curvature += weight[k] * surface.curvature[corner[k]];
+    }
+    Vec3 point = bilinear;
+    if (interpolation_ == Interpolation::kPhong) {
+      Vec3 phong = Vec3::Zero();
+      for (int k = 0; k < 4; ++k) {
+        phong += weight[k] * (bilinear - (bilinear - points[corner[k]]).dot(n[k]) * n[k]);
+      }
+      point = (1.0 - alpha_) * bilinear + alpha_ * phong;
+    }
+    if (!(normal.norm() > 0.0)) continue;
+    c.point = point;
+    c.normal = normal.normalized();
+    c.curvature = curvature;
+    c.valid = true;
+  }
+}
+
+}  // namespace mlsreg

@@ -1,0 +1,80 @@
+#include "mlsreg/geometry/target.h"
+
+#include <chrono>
+
+#include "absl/strings/str_cat.h"
+#include "mlsreg/geometry/sampling.h"
+
+namespace mlsreg {
+
+absl::StatusOr<std::shared_ptr<const Target>> Target::Build(PointCloud cloud,
+                                                            const TargetOptions& options,
+                                                            const StopCheck& should_stop) {
+  absl::StatusOr<std::shared_ptr<Target>> target =
+      BuildMutable(std::move(cloud), options, should_stop);
+  if (!target.ok()) return target.status();
+  return std::shared_ptr<const Target>(*std::move(target));
+}
+
+absl::StatusOr<std::shared_ptr<const Target>> Target::WithMovedPoints(
+    std::vector<Vec3> points) const {
+  if (points.size() != cloud_.points.size()) {
+    return absl::InvalidArgumentError("WithMovedPoints: the point count must not change");
+  }
+  PointCloud moved = cloud_;
+  moved.points = std::move(points);
+  moved.normals.clear();
+  absl::StatusOr<std::shared_ptr<Target>> target = BuildMutable(std::move(moved), options_, {});
+  if (!target.ok()) return target.status();
+  (*target)->surface_.curvature = surface_.curvature;
+  return std::shared_ptr<const Target>(*std::move(target));
+}
+
+absl::StatusOr<std::shared_ptr<Target>> Target::BuildMutable(PointCloud cloud,
+                                                             const TargetOptions& options,
+                                                             const StopCheck& should_stop) {
+  if (absl::Status s = ValidatePointCloud(cloud, options.min_points); !s.ok()) return s;
+  if (absl::Status s = CheckCoordinateRange(cloud); !s.ok()) return s;
+  if (cloud.intrinsics) {  // before anything is allocated for it
+    if (absl::Status s = ValidateIntrinsicsFor(*cloud.intrinsics, cloud.size(), "intrinsics");
+        !s.ok()) {
+      return s;
+    }
+  }
+  auto cancelled = [] { return absl::CancelledError("target build cancelled"); };
+  if (!(options.analysis_radius_d > 0.0)) {
+    return absl::InvalidArgumentError("analysis_radius_d must be positive");
+  }
+  const auto start = std::chrono::steady_clock::now();
+  std::shared_ptr<Target> target(new Target());
+  target->cloud_ = std::move(cloud);
+  target->options_ = options;
+  target->tree_ = std::make_unique<KdTree>(target->cloud_.points);
+  if (should_stop && should_stop()) return cancelled();
+  target->sampling_distance_ = SamplingDistance(target->cloud_.points, *target->tree_);
+  if (!(target->sampling_distance_ > 0.0)) {
+    return absl::InvalidArgumentError("target has no two distinct points (sampling distance 0)");
+  }
+  if (should_stop && should_stop()) return cancelled();
+  target->surface_ = AnalyzeSurface(target->cloud_.points, *target->tree_,
+                                    options.analysis_radius_d * target->sampling_distance_,
+                                    target->cloud_.viewpoint, {}, should_stop);
+  if (target->surface_.stopped) return cancelled();
+  if (target->cloud_.intrinsics) {
+    auto grid = DepthGrid::Build(target->cloud_.points, *target->cloud_.intrinsics);
+    if (!grid.ok()) return grid.status();
+    target->grid_ = *std::move(grid);
+  }
+  target->build_seconds_ =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return target;
+}
+
+std::size_t Target::MemoryBytes() const {
+  return cloud_.points.capacity() * sizeof(Vec3) + cloud_.normals.capacity() * sizeof(Vec3) +
+         surface_.normals.capacity() * sizeof(Vec3) +
+         surface_.curvature.capacity() * sizeof(double) + surface_.valid.capacity() +
+         tree_->MemoryBytes() + (grid_ ? grid_->MemoryBytes() : 0) + sizeof(Target);
+}
+
+}  // namespace mlsreg

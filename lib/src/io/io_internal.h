@@ -1,0 +1,365 @@
+// Helpers shared by the PLY, PCD and XYZ readers and writers (io_*.cc). Not part of the public API.
+//
+// Contents, top-down: where an error is (Location), walking text (LineCursor, NextToken),
+// parsing numbers, decoding/encoding binary scalars, and turning the values read for one point
+// into a validated point of a PointCloud.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <charconv>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <utility>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/strings/escaping.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/string_view.h"
+#include "mlsreg/core/point_cloud.h"
+#include "mlsreg/core/triangle_mesh.h"
+
+namespace mlsreg::io_internal {
+
+// Debian's absl 20220623 has its own string_view type; convert explicitly.
+inline absl::string_view ToAbsl(std::string_view s) {
+  return absl::string_view(s.data(), s.size());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Where an error is, rendered as "PLY line 14, vertex 2" or "PCD byte offset 96, point 3".
+
+struct Location {
+  enum class Unit { kLine, kByteOffset };
+
+  std::string_view format;  // "PLY", "PCD" or "XYZ"
+  Unit unit;
+  std::uint64_t position;      // line number (from 1) or byte offset (from 0, start of file)
+  std::string_view item = {};  // "vertex", "point", another element name, or empty
+  std::uint64_t index = 0;     // index of the item (from 0) when `item` is set
+};
+
+inline Location AtLine(std::string_view format, std::uint64_t line) {
+  return {format, Location::Unit::kLine, line};
+}
+inline Location AtOffset(std::string_view format, std::uint64_t offset) {
+  return {format, Location::Unit::kByteOffset, offset};
+}
+
+inline std::string ToString(const Location& where) {
+  std::string text = absl::StrCat(ToAbsl(where.format),
+                                  where.unit == Location::Unit::kLine ? " line " : " byte offset ",
+                                  where.position);
+  if (!where.item.empty()) absl::StrAppend(&text, ", ", ToAbsl(where.item), " ", where.index);
+  return text;
+}
+
+// InvalidArgument "<where>: <what>".
+inline absl::Status ErrorAt(const Location& where, std::string_view what) {
+  return absl::InvalidArgumentError(absl::StrCat(ToString(where), ": ", ToAbsl(what)));
+}
+
+// A token from a file, quoted for an error message: escaped, and cut short when long.
+inline std::string Quote(std::string_view token) {
+  constexpr std::size_t kMaxShown = 32;
+  const bool cut = token.size() > kMaxShown;
+  return absl::StrCat("'", absl::CHexEscape(ToAbsl(token.substr(0, kMaxShown))),
+                      cut ? "...'" : "'");
+}
+
+// "N bytes", spelled out even when count * bytes_each does not fit in 64 bits.
+inline std::string ByteCount(std::uint64_t count, std::uint64_t bytes_each) {
+  if (bytes_each != 0 && count > UINT64_MAX / bytes_each) {
+    return absl::StrCat("more than ", UINT64_MAX, " bytes");
+  }
+  return absl::StrCat(count * bytes_each, " bytes");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Text.
+
+inline bool IsSpace(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
+
+inline bool IsBlank(std::string_view text) {
+  return std::all_of(text.begin(), text.end(), [](char c) { return IsSpace(c) || c == '\n'; });
+}
+
+// Walks `text` line by line. A line ends at '\n' (which is not part of it); a '\r' before the
+// '\n' is dropped too, so "\r\n" files read the same.
+class LineCursor {
+ public:
+  explicit LineCursor(std::string_view text) : text_(text) {}
+
+  // Sets `*line` to the next line and returns true, or returns false at the end of the text.
+  bool Next(std::string_view* line) {
+    if (offset_ >= text_.size()) return false;
+    const std::size_t newline = text_.find('\n', offset_);
+    const std::size_t end = newline == std::string_view::npos ? text_.size() : newline;
+    *line = text_.substr(offset_, end - offset_);
+    if (!line->empty() && line->back() == '\r') line->remove_suffix(1);
+    offset_ = newline == std::string_view::npos ? text_.size() : newline + 1;
+    ++line_number_;
+    return true;
+  }
+
+  // Number (from 1) of the line last returned by Next; 0 before the first call.
+  std::uint64_t line_number() const { return line_number_; }
+  // Byte offset where the next line starts: right after the last line's '\n'.
+  std::size_t offset() const { return offset_; }
+  // Everything not yet returned.
+  std::string_view rest() const { return text_.substr(offset_); }
+
+ private:
+  std::string_view text_;
+  std::size_t offset_ = 0;
+  std::uint64_t line_number_ = 0;
+};
+
+// Removes the next whitespace-separated token from the front of `*rest` into `*token`; returns
+// false when only whitespace is left.
+inline bool NextToken(std::string_view* rest, std::string_view* token) {
+  std::size_t begin = 0;
+  while (begin < rest->size() && IsSpace((*rest)[begin])) ++begin;
+  if (begin == rest->size()) {
+    *rest = {};
+    return false;
+  }
+  std::size_t end = begin;
+  while (end < rest->size() && !IsSpace((*rest)[end])) ++end;
+  *token = rest->substr(begin, end - begin);
+  rest->remove_prefix(end);
+  return true;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Files (io.cc).
+
+// The extension of the last path component, lower-cased, with its dot (".ply"); empty if none.
+std::string LowerCaseExtension(const std::string& path);
+// The whole file; NotFound when it or a directory on its path does not exist, else Unavailable.
+absl::StatusOr<std::string> ReadFileBytes(const std::string& path);
+
+// ---------------------------------------------------------------------------------------------
+// Numbers.
+
+// Parses a whole token as a double with std::from_chars: decimal or scientific notation, with an
+// optional leading '+' or '-'; "nan" and "inf" are accepted (callers reject non-finite values with
+// a message saying which value). Returns nullopt for anything else, including out-of-range values.
+inline std::optional<double> ParseDouble(std::string_view token) {
+  if (token.size() > 1 && token[0] == '+' && token[1] != '-') token.remove_prefix(1);
+  double value = 0.0;
+  const char* const end = token.data() + token.size();
+  const auto [stop, error] = std::from_chars(token.data(), end, value);
+  if (error != std::errc() || stop != end) return std::nullopt;
+  return value;
+}
+
+// Parses a whole token as a non-negative decimal integer (header counts, list lengths).
+inline std::optional<std::uint64_t> ParseUint64(std::string_view token) {
+  std::uint64_t value = 0;
+  const char* const end = token.data() + token.size();
+  const auto [stop, error] = std::from_chars(token.data(), end, value);
+  if (token.empty() || error != std::errc() || stop != end) return std::nullopt;
+  return value;
+}
+
+// Appends `value` as text with 17 significant digits (printf "%.17g"), which parses back to the
+// same double.
+inline void AppendDoubleText(double value, std::string* out) {
+  char buffer[32];
+  const auto result =
+      std::to_chars(buffer, buffer + sizeof(buffer), value, std::chars_format::general, 17);
+  out->append(buffer, result.ptr);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Binary scalars. Always memcpy'd (never a reinterpret_cast of unaligned file bytes) and
+// byte-swapped when the file's byte order is not the host's.
+
+struct ScalarType {
+  enum class Kind : std::uint8_t { kSigned, kUnsigned, kFloat };
+  Kind kind;
+  std::uint8_t size;  // bytes: 1, 2, 4 or 8 (4 or 8 for kFloat)
+};
+
+template <typename T>
+T LoadAs(const unsigned char* bytes) {
+  T value;
+  std::memcpy(&value, bytes, sizeof(T));
+  return value;
+}
+
+// Reads the scalar of `type` stored at `data` in byte order `order`, as a double.
+inline double DecodeScalar(const char* data, ScalarType type, std::endian order) {
+  unsigned char bytes[8];
+  std::memcpy(bytes, data, type.size);
+  if (order != std::endian::native) std::reverse(bytes, bytes + type.size);
+  using Kind = ScalarType::Kind;
+  switch (type.kind) {
+    case Kind::kFloat:
+      return type.size == 4 ? LoadAs<float>(bytes) : LoadAs<double>(bytes);
+    case Kind::kSigned:
+      switch (type.size) {
+        case 1:
+          return LoadAs<std::int8_t>(bytes);
+        case 2:
+          return LoadAs<std::int16_t>(bytes);
+        case 4:
+          return LoadAs<std::int32_t>(bytes);
+        default:
+          return static_cast<double>(LoadAs<std::int64_t>(bytes));
+      }
+    case Kind::kUnsigned:
+      switch (type.size) {
+        case 1:
+          return LoadAs<std::uint8_t>(bytes);
+        case 2:
+          return LoadAs<std::uint16_t>(bytes);
+        case 4:
+          return LoadAs<std::uint32_t>(bytes);
+        default:
+          return static_cast<double>(LoadAs<std::uint64_t>(bytes));
+      }
+  }
+  return 0.0;  // Unreachable: every Kind is handled above.
+}
+
+// Appends the 8 bytes of `value` in byte order `order`.
+inline void AppendDoubleBinary(double value, std::endian order, std::string* out) {
+  char bytes[sizeof(double)];
+  std::memcpy(bytes, &value, sizeof(double));
+  if (order != std::endian::native) std::reverse(bytes, bytes + sizeof(double));
+  out->append(bytes, sizeof(double));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Points.
+
+// The values a reader collects for one point, indexed by Component.
+enum Component : int { kX = 0, kY, kZ, kNormalX, kNormalY, kNormalZ, kNotAComponent = -1 };
+using PointValues = std::array<double, 6>;
+
+inline constexpr std::array<std::string_view, 3> kAxisNames = {"x", "y", "z"};
+
+// Makes `*normal` unit length. A normal already unit to within 1e-12 in squared length is left
+// bit for bit as it is, so normals written by mlsreg round-trip exactly.
+inline absl::Status NormalizeNormal(const Location& where, Vec3* normal) {
+  const auto describe = [&] {
+    return absl::StrCat("normal (", normal->x(), ", ", normal->y(), ", ", normal->z(), ")");
+  };
+  if (!normal->allFinite()) return ErrorAt(where, describe() + " has a non-finite component");
+  if (std::abs(normal->squaredNorm() - 1.0) <= 1e-12) return absl::OkStatus();
+  const double largest = normal->cwiseAbs().maxCoeff();
+  if (!(largest > 0.0)) return ErrorAt(where, describe() + " has zero length");
+  *normal /= largest;  // Largest component now +-1: no overflow or subnormal precision loss below.
+  *normal /= normal->norm();
+  return absl::OkStatus();
+}
+
+// Checks the values read for one point (finite coordinates; a finite, non-zero normal when
+// `with_normal`) and appends the point, and its normalised normal, to `*cloud`.
+inline absl::Status AppendPoint(const PointValues& values, bool with_normal, const Location& where,
+                                PointCloud* cloud) {
+  const Vec3 point(values[kX], values[kY], values[kZ]);
+  if (!point.allFinite()) {
+    if (point.array().isNaN().all()) {
+      return ErrorAt(where,
+                     "x, y and z are all NaN (the marker PCL uses for a missing point); mlsreg "
+                     "requires finite coordinates, so remove such points first");
+    }
+    for (int axis = 0; axis < 3; ++axis) {
+      if (!std::isfinite(point[axis])) {
+        return ErrorAt(where, absl::StrCat("coordinate ", ToAbsl(kAxisNames[axis]),
+                                           " is not finite (", point[axis], ")"));
+      }
+    }
+  }
+  if (with_normal) {
+    Vec3 normal(values[kNormalX], values[kNormalY], values[kNormalZ]);
+    if (absl::Status status = NormalizeNormal(where, &normal); !status.ok()) return status;
+    cloud->normals.push_back(normal);
+  }
+  cloud->points.push_back(point);
+  return absl::OkStatus();
+}
+
+// Reserves room for the `declared` points of a header, but for no more than `max_possible`, the
+// most the bytes left could hold, so a header that lies cannot make a reader allocate much.
+inline void ReservePoints(std::uint64_t declared, std::uint64_t max_possible, bool with_normals,
+                          PointCloud* cloud) {
+  const std::uint64_t count = std::min(declared, max_possible);
+  cloud->points.reserve(count);
+  if (with_normals) cloud->normals.reserve(count);
+}
+
+// The most lines of `values_per_line` text values that `available` bytes can hold: each value
+// takes at least a character and a separator (or the newline).
+inline std::uint64_t MaxTextLines(std::uint64_t available, std::uint64_t values_per_line) {
+  if (values_per_line == 0) return available + 1;
+  if (values_per_line > available) return 0;  // Also keeps 2 * values_per_line from overflowing.
+  return (available + 1) / (2 * values_per_line);
+}
+
+// The final check of every reader: at least one point, and the PointCloud invariants.
+inline absl::StatusOr<PointCloud> FinishCloud(std::string_view format, PointCloud cloud) {
+  if (cloud.empty()) {
+    return absl::InvalidArgumentError(absl::StrCat(ToAbsl(format), " file contains no points"));
+  }
+  if (absl::Status status = ValidatePointCloud(cloud, 1); !status.ok()) return status;
+  return cloud;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Writers.
+
+// True when a writer should write normals: there is exactly one per point.
+inline bool WritesNormals(const PointCloud& cloud) {
+  return cloud.has_normals() && cloud.normals.size() == cloud.points.size();
+}
+
+// Appends one line "x y z[ nx ny nz]\n" per point, 17 significant digits each.
+inline void AppendPointsAsText(const PointCloud& cloud, std::string* out) {
+  const bool with_normals = WritesNormals(cloud);
+  out->reserve(out->size() + cloud.size() * (with_normals ? 150 : 75));
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      if (k > 0) *out += ' ';
+      AppendDoubleText(cloud.points[i][k], out);
+    }
+    for (int k = 0; with_normals && k < 3; ++k) {
+      *out += ' ';
+      AppendDoubleText(cloud.normals[i][k], out);
+    }
+    *out += '\n';
+  }
+}
+
+// Appends x y z[ nx ny nz] of every point as 8-byte doubles in byte order `order`.
+inline void AppendPointsAsBinary(const PointCloud& cloud, std::endian order, std::string* out) {
+  const bool with_normals = WritesNormals(cloud);
+  out->reserve(out->size() + cloud.size() * (with_normals ? 48 : 24));
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    for (int k = 0; k < 3; ++k) AppendDoubleBinary(cloud.points[i][k], order, out);
+    for (int k = 0; with_normals && k < 3; ++k) AppendDoubleBinary(cloud.normals[i][k], order, out);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Meshes (mesh_io.cc).
+
+// Splits polygon i (sizes[i] corners, taken in order from `indices`) into a fan of triangles,
+// checking every index is an integer in range; the result passes ValidateTriangleMesh.
+absl::StatusOr<TriangleMesh> TriangulatePolygons(std::string_view format,
+                                                 std::vector<Vec3> vertices,
+                                                 const std::vector<std::uint32_t>& sizes,
+                                                 const std::vector<double>& indices);
+
+}  // namespace mlsreg::io_internal
