@@ -5,7 +5,9 @@
 #include <chrono>
 #include <cmath>
 
-#include "mlsreg/registration/registration.h"
+#include "mlsreg/geometry/target.h"
+#include "mlsreg/registration/options.h"
+#include "mlsreg/registration/result.h"
 #include "mlsreg/solvers/rigid_motion.h"
 
 namespace mlsreg::internal {

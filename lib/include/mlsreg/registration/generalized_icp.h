@@ -3,7 +3,9 @@
 
 #include <chrono>
 
-#include "mlsreg/registration/registration.h"
+#include "mlsreg/geometry/target.h"
+#include "mlsreg/registration/options.h"
+#include "mlsreg/registration/result.h"
 
 namespace mlsreg {
 
