@@ -263,12 +263,7 @@ class RegisterCall final : public StreamingCall<RegisterReactor> {
     wire::ToProto(result, out);
     out->mutable_timings()->set_queue_seconds(outcome->queue_seconds);
     if (outcome->ground_truth_error) {
-      const PoseError& e = *outcome->ground_truth_error;
-      v1::GroundTruthError* gt = out->mutable_ground_truth_error();
-      gt->set_rmse_d(e.rmse_d);
-      gt->set_success(e.success);
-      gt->set_rotation_error_deg(e.rotation_deg);
-      gt->set_translation_error_d(e.translation_d);
+      wire::ToProto(*outcome->ground_truth_error, out->mutable_ground_truth_error());
     }
     return absl::OkStatus();
   }

@@ -309,13 +309,12 @@ absl::StatusOr<TargetInfo> Client::Impl::UploadTo(Replica& replica, grpc::Client
   auto writer = replica.targets->CreateTarget(&context, &response);
   // A server that already holds this content (or refuses the header) finishes the call early:
   // the writes then fail and Finish tells why, or returns the stored target.
-  bool open = writer->Write(header_message);
-  v1::CreateTargetRequest chunk_message;
-  for (std::size_t offset = 0; open && offset < payload.size(); offset += options.chunk_bytes) {
-    v1::CloudChunk* chunk = chunk_message.mutable_chunk();
-    chunk->set_offset(offset);
-    chunk->set_data(payload.substr(offset, options.chunk_bytes));
-    open = writer->Write(chunk_message);
+  if (writer->Write(header_message)) {
+    v1::CreateTargetRequest chunk_message;
+    wire::WriteChunks(payload, options.chunk_bytes, [&](const v1::CloudChunk& chunk) {
+      *chunk_message.mutable_chunk() = chunk;
+      return writer->Write(chunk_message);
+    });
   }
   writer->WritesDone();
   const grpc::Status status = writer->Finish();
@@ -423,15 +422,10 @@ absl::StatusOr<RemoteRegistrationResult> Client::Register(
     const std::atomic<bool>* cancel) {
   v1::RegisterRequest header_message;
   v1::RegisterHeader* header = header_message.mutable_header();
-  header->set_target_id(target_id);
-  v1::Method method;
-  wire::OptionsToProto(options, &method, header->mutable_parameters());
-  header->set_method(method);
-  wire::ToProto(initial, header->mutable_initial_transform());
-  if (ground_truth) wire::ToProto(*ground_truth, header->mutable_ground_truth());
   std::string payload;
-  wire::EncodeCloud(source, options_.float32 ? v1::SCALAR_TYPE_FLOAT32 : v1::SCALAR_TYPE_FLOAT64,
-                    header->mutable_source(), &payload);
+  wire::BuildRegisterHeader(target_id, source,
+                            options_.float32 ? v1::SCALAR_TYPE_FLOAT32 : v1::SCALAR_TYPE_FLOAT64,
+                            options, initial, ground_truth, header, &payload);
   const bool inline_source = payload.size() <= options_.chunk_bytes;
   if (inline_source) header->set_source_data(payload);
 
@@ -473,16 +467,12 @@ absl::StatusOr<RemoteRegistrationResult> Client::Register(
             }
           });
         }
-        bool open = stream->Write(header_message);
-        if (!inline_source) {
+        if (stream->Write(header_message) && !inline_source) {
           v1::RegisterRequest chunk_message;
-          for (std::size_t offset = 0; open && offset < payload.size();
-               offset += options_.chunk_bytes) {
-            v1::CloudChunk* chunk = chunk_message.mutable_source_chunk();
-            chunk->set_offset(offset);
-            chunk->set_data(payload.substr(offset, options_.chunk_bytes));
-            open = stream->Write(chunk_message);
-          }
+          wire::WriteChunks(payload, options_.chunk_bytes, [&](const v1::CloudChunk& chunk) {
+            *chunk_message.mutable_source_chunk() = chunk;
+            return stream->Write(chunk_message);
+          });
         }
         stream->WritesDone();
         v1::RegisterResponse response;
@@ -500,9 +490,7 @@ absl::StatusOr<RemoteRegistrationResult> Client::Register(
             out.result.trace = std::move(trace);
             out.queue_seconds = response.result().timings().queue_seconds();
             if (response.result().has_ground_truth_error()) {
-              const v1::GroundTruthError& e = response.result().ground_truth_error();
-              out.ground_truth_error = PoseError{e.rmse_d(), e.success(), e.rotation_error_deg(),
-                                                 e.translation_error_d()};
+              out.ground_truth_error = wire::FromProto(response.result().ground_truth_error());
             }
             have_result = true;
           }

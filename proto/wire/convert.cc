@@ -524,4 +524,42 @@ RegistrationResult FromProto(const v1::Result& p) {
   return r;
 }
 
+void ToProto(const PoseError& error, v1::GroundTruthError* out) {
+  out->set_rmse_d(error.rmse_d);
+  out->set_success(error.success);
+  out->set_rotation_error_deg(error.rotation_deg);
+  out->set_translation_error_d(error.translation_d);
+}
+
+PoseError FromProto(const v1::GroundTruthError& error) {
+  return PoseError{error.rmse_d(), error.success(), error.rotation_error_deg(),
+                   error.translation_error_d()};
+}
+
+// ------------------------------------------------------------------------------------ requests
+
+void BuildRegisterHeader(const std::string& target_id, const PointCloud& source,
+                         v1::ScalarType scalar_type, const RegistrationOptions& options,
+                         const Matrix4& initial, const std::optional<Matrix4>& ground_truth,
+                         v1::RegisterHeader* header, std::string* payload) {
+  header->set_target_id(target_id);
+  v1::Method method;
+  OptionsToProto(options, &method, header->mutable_parameters());
+  header->set_method(method);
+  ToProto(initial, header->mutable_initial_transform());
+  if (ground_truth) ToProto(*ground_truth, header->mutable_ground_truth());
+  EncodeCloud(source, scalar_type, header->mutable_source(), payload);
+}
+
+bool WriteChunks(std::string_view payload, std::size_t chunk_bytes,
+                 const std::function<bool(const v1::CloudChunk&)>& write) {
+  v1::CloudChunk chunk;
+  for (std::size_t offset = 0; offset < payload.size(); offset += chunk_bytes) {
+    chunk.set_offset(offset);
+    chunk.set_data(std::string(payload.substr(offset, chunk_bytes)));
+    if (!write(chunk)) return false;
+  }
+  return true;
+}
+
 }  // namespace mlsreg::wire

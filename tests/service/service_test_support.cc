@@ -110,19 +110,29 @@ Client Connect(int port, std::string token) {
       std::move(token));
 }
 
-std::vector<v1::CreateTargetRequest> CreateMessages(const std::string& id, const PointCloud& cloud,
-                                                    std::size_t chunk_bytes) {
+namespace {
+
+std::vector<v1::CreateTargetRequest> CreateMessagesOf(const std::string& id,
+                                                      const PointCloud& cloud,
+                                                      std::size_t chunk_bytes,
+                                                      v1::ScalarType scalar_type) {
   std::vector<v1::CreateTargetRequest> messages(1);
   v1::CreateTargetHeader* header = messages[0].mutable_header();
   header->set_target_id(id);
   std::string payload;
-  wire::EncodeCloud(cloud, v1::SCALAR_TYPE_FLOAT64, header->mutable_cloud(), &payload);
-  for (std::size_t offset = 0; offset < payload.size(); offset += chunk_bytes) {
-    v1::CloudChunk* chunk = messages.emplace_back().mutable_chunk();
-    chunk->set_offset(offset);
-    chunk->set_data(payload.substr(offset, chunk_bytes));
-  }
+  wire::EncodeCloud(cloud, scalar_type, header->mutable_cloud(), &payload);
+  wire::WriteChunks(payload, chunk_bytes, [&](const v1::CloudChunk& chunk) {
+    *messages.emplace_back().mutable_chunk() = chunk;
+    return true;
+  });
   return messages;
+}
+
+}  // namespace
+
+std::vector<v1::CreateTargetRequest> CreateMessages(const std::string& id, const PointCloud& cloud,
+                                                    std::size_t chunk_bytes) {
+  return CreateMessagesOf(id, cloud, chunk_bytes, v1::SCALAR_TYPE_FLOAT64);
 }
 
 grpc::Status SendCreate(const Client& client, const std::vector<v1::CreateTargetRequest>& messages,
@@ -142,18 +152,7 @@ grpc::Status SendCreate(const Client& client, const std::vector<v1::CreateTarget
 
 grpc::Status Upload(const Client& client, const std::string& id, const PointCloud& cloud,
                     v1::Target* out, std::size_t chunk_bytes, v1::ScalarType scalar_type) {
-  std::vector<v1::CreateTargetRequest> messages = CreateMessages(id, cloud, chunk_bytes);
-  if (scalar_type != v1::SCALAR_TYPE_FLOAT64) {
-    messages.resize(1);
-    std::string payload;
-    wire::EncodeCloud(cloud, scalar_type, messages[0].mutable_header()->mutable_cloud(), &payload);
-    for (std::size_t offset = 0; offset < payload.size(); offset += chunk_bytes) {
-      v1::CloudChunk* chunk = messages.emplace_back().mutable_chunk();
-      chunk->set_offset(offset);
-      chunk->set_data(payload.substr(offset, chunk_bytes));
-    }
-  }
-  return SendCreate(client, messages, out);
+  return SendCreate(client, CreateMessagesOf(id, cloud, chunk_bytes, scalar_type), out);
 }
 
 grpc::Status GetTarget(const Client& client, const std::string& id, v1::Target* out) {
@@ -194,23 +193,17 @@ std::vector<v1::RegisterRequest> RegisterMessages(
     const Matrix4& initial, const std::optional<Matrix4>& ground_truth, std::size_t chunk_bytes) {
   std::vector<v1::RegisterRequest> messages(1);
   v1::RegisterHeader* header = messages[0].mutable_header();
-  header->set_target_id(target_id);
-  v1::Method method;
-  wire::OptionsToProto(options, &method, header->mutable_parameters());
-  header->set_method(method);
-  wire::ToProto(initial, header->mutable_initial_transform());
-  if (ground_truth) wire::ToProto(*ground_truth, header->mutable_ground_truth());
   std::string payload;
-  wire::EncodeCloud(source, v1::SCALAR_TYPE_FLOAT64, header->mutable_source(), &payload);
+  wire::BuildRegisterHeader(target_id, source, v1::SCALAR_TYPE_FLOAT64, options, initial,
+                            ground_truth, header, &payload);
   if (chunk_bytes == 0) {
     header->set_source_data(std::move(payload));
     return messages;
   }
-  for (std::size_t offset = 0; offset < payload.size(); offset += chunk_bytes) {
-    v1::CloudChunk* chunk = messages.emplace_back().mutable_source_chunk();
-    chunk->set_offset(offset);
-    chunk->set_data(payload.substr(offset, chunk_bytes));
-  }
+  wire::WriteChunks(payload, chunk_bytes, [&](const v1::CloudChunk& chunk) {
+    *messages.emplace_back().mutable_source_chunk() = chunk;
+    return true;
+  });
   return messages;
 }
 

@@ -4,12 +4,15 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <optional>
 #include <string>
 #include <string_view>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "grpcpp/support/status.h"
+#include "mlsreg/evaluation/metrics.h"
 #include "mlsreg/registration/registration.h"
 #include "mlsreg/v1/mlsreg.pb.h"
 
@@ -84,5 +87,20 @@ IterationReport FromProto(const v1::Progress& progress);
 RegistrationResult FromProto(const v1::Result& result);
 v1::Termination TerminationToProto(Termination t);
 Termination TerminationFromProto(v1::Termination t);
+void ToProto(const PoseError& error, v1::GroundTruthError* out);
+PoseError FromProto(const v1::GroundTruthError& error);
+
+// ---- requests
+// The header of a Register call: target, method and every parameter, the initial transform,
+// the ground truth when given, and the source's header; its packed data goes to `payload`
+// (inline or in chunks: the caller decides).
+void BuildRegisterHeader(const std::string& target_id, const PointCloud& source,
+                         v1::ScalarType scalar_type, const RegistrationOptions& options,
+                         const Matrix4& initial, const std::optional<Matrix4>& ground_truth,
+                         v1::RegisterHeader* header, std::string* payload);
+// Calls `write(chunk)` for consecutive chunks of `payload` of at most `chunk_bytes` (offsets
+// set), until it returns false or the payload is sent; returns whether all were written.
+bool WriteChunks(std::string_view payload, std::size_t chunk_bytes,
+                 const std::function<bool(const v1::CloudChunk&)>& write);
 
 }  // namespace mlsreg::wire
