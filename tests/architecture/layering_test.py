@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""The library's layers depend only downwards, and the library knows nothing of the service.
+"""The library's layers depend only downwards, the library knows nothing of the service, and the
+client library and the server do not include each other (the CLI, in cli/, sits above both).
 
 Every #include "mlsreg/<layer>/..." in lib/include/mlsreg/<layer>/ and lib/src/<layer>/ must name
 the same layer or one it may use (lib/CMakeLists.txt); lib/ may not include the wire, the
@@ -47,6 +48,13 @@ def main(root: pathlib.Path) -> int:
                     elif parts[0] == "mlsreg" and len(parts) == 2:
                         problems.append(f"{path.relative_to(root)}: includes {target}, which is in "
                                         "no layer")
+    # The client library and the server are peers over the wire: neither includes the other.
+    for peer, other in (("client", "server/"), ("server", "mlsreg/client/")):
+        for path in sorted((root / peer).rglob("*")):
+            if path.suffix in (".h", ".cc"):
+                for target in INCLUDE.findall(path.read_text()):
+                    if target.startswith(other):
+                        problems.append(f"{path.relative_to(root)}: includes {target}")
     for p in problems:
         print(p)
     print(f"layering: {len(problems)} problems")
