@@ -8,6 +8,7 @@
 #include "cli/connection_flags.h"
 #include "cli/registration_flags.h"
 #include "cli/report.h"
+#include "mlsreg/evaluation/evaluation.h"
 #include "mlsreg/evaluation/metrics.h"
 #include "mlsreg/io/io.h"
 
@@ -35,15 +36,9 @@ void PrintIteration(const IterationReport& r) {
 
 Matrix4 Perturbed(const RegisterArgs& args, const PointCloud& source, const Matrix4& initial,
                   double d) {
-  if (args.perturb_angle == 0.0 && args.perturb_translation == 0.0) return initial;
-  // Same protocol as `mlsreg eval`: rotate about the source centroid as placed by --init.
-  Vec3 centroid = Vec3::Zero();
-  for (const Vec3& p : source.points) centroid += p;
-  centroid /= static_cast<double>(source.size());
-  centroid = initial.topLeftCorner<3, 3>() * centroid + initial.topRightCorner<3, 1>();
-  return RandomPerturbation(args.perturb_angle, args.perturb_translation * d, centroid,
-                            args.perturb_seed) *
-         initial;
+  // The protocol of `mlsreg eval`, problem 0.
+  return PerturbedStart(source, initial, d,
+                        {args.perturb_angle, args.perturb_translation, args.perturb_seed});
 }
 
 int WriteJson(const RegisterArgs& args, const RegistrationOptions& options,

@@ -90,11 +90,7 @@ ProblemOutcome RunOne(const RegistrationProblem& problem, std::size_t index, Met
   out.target_build_seconds = (*target)->build_seconds();
   const Matrix4& truth = *problem.ground_truth;
   const Matrix4 base = problem.initial.value_or(truth);
-  const PerturbationProtocol& p = options.perturbation;
-  const Matrix4 perturbation =
-      RandomPerturbation(p.angle_deg, p.translation_d * d, TransformedCentroid(**source, base),
-                         p.seed * 1000003ULL + index);
-  out.initial = perturbation * base;
+  out.initial = PerturbedStart(**source, base, d, options.perturbation, index);
   out.initial_error = EvaluatePose((*source)->points, out.initial, truth, d);
   RegistrationOptions registration = options.registration;
   registration.method = method;
@@ -113,6 +109,15 @@ ProblemOutcome RunOne(const RegistrationProblem& problem, std::size_t index, Met
 }
 
 }  // namespace
+
+Matrix4 PerturbedStart(const PointCloud& source, const Matrix4& initial, double d,
+                       const PerturbationProtocol& protocol, std::size_t index) {
+  if (protocol.angle_deg == 0.0 && protocol.translation_d == 0.0) return initial;
+  return RandomPerturbation(protocol.angle_deg, protocol.translation_d * d,
+                            TransformedCentroid(source, initial),
+                            protocol.seed * 1000003ULL + index) *
+         initial;
+}
 
 absl::StatusOr<std::vector<ProblemOutcome>> RunEvaluation(
     const Manifest& manifest, const EvaluationOptions& options,

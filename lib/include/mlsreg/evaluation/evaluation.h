@@ -24,6 +24,15 @@ struct PerturbationProtocol {
   std::uint64_t seed = 1;
 };
 
+// The start pose of the evaluation protocol, the one place it is written (`mlsreg register
+// --perturb-*` and `mlsreg eval` both call it): `initial` followed by a random rotation of
+// angle_deg about the source's centroid as `initial` places it and a random translation of
+// translation_d * d. Problem `index` of a run draws from seed * 1000003 + index, so `register`
+// with a seed starts where problem 0 of `eval` with that seed does. No perturbation (both zero)
+// returns `initial`.
+Matrix4 PerturbedStart(const PointCloud& source, const Matrix4& initial, double d,
+                       const PerturbationProtocol& protocol, std::size_t index = 0);
+
 struct EvaluationOptions {
   std::vector<Method> methods = {Method::kMlsSicp};
   RegistrationOptions registration;  // method is overwritten per run
