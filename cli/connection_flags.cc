@@ -2,8 +2,8 @@
 
 #include <cctype>
 #include <cstdlib>
-#include <fstream>
-#include <sstream>
+
+#include "mlsreg/io/io.h"
 
 namespace mlsreg::cli {
 
@@ -38,15 +38,15 @@ absl::StatusOr<std::unique_ptr<client::Client>> ConnectionFlags::Connect() const
     if (!options.token.empty()) {
       return absl::InvalidArgumentError("give --token or --token-file, not both");
     }
-    std::ifstream in(token_file_, std::ios::binary);
-    std::ostringstream text;
-    text << in.rdbuf();
-    options.token = text.str();
+    absl::StatusOr<std::string> text = ReadFileBytes(token_file_);
+    if (!text.ok())
+      return absl::InvalidArgumentError("--token-file: " + std::string(text.status().message()));
+    options.token = *std::move(text);
     while (!options.token.empty() &&
            std::isspace(static_cast<unsigned char>(options.token.back()))) {
       options.token.pop_back();
     }
-    if (!in || options.token.empty()) {
+    if (options.token.empty()) {
       return absl::InvalidArgumentError("--token-file: cannot read a token from '" + token_file_ +
                                         "'");
     }

@@ -13,6 +13,7 @@
 #include <type_traits>
 
 #include "absl/strings/str_cat.h"
+#include "mlsreg/io/io.h"
 #include "nlohmann/json.hpp"
 
 namespace mlsreg::server {
@@ -96,13 +97,12 @@ std::string HostOf(const std::string& listen) {
 }  // namespace
 
 absl::StatusOr<std::string> ReadTextFile(const std::string& path, const std::string& what) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  if (in) text << in.rdbuf();
-  if (!in || in.bad()) {
-    return absl::InvalidArgumentError(absl::StrCat(what, ": cannot read file '", path, "'"));
+  absl::StatusOr<std::string> bytes = ReadFileBytes(path);
+  if (!bytes.ok()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(what, ": cannot read file '", path, "' (", bytes.status().message(), ")"));
   }
-  return text.str();
+  return bytes;
 }
 
 absl::Status LoadConfigFile(const std::string& path, ServerConfig* config) {

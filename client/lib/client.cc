@@ -18,6 +18,7 @@
 #include "absl/strings/str_split.h"
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "mlsreg/core/cloud_digest.h"
+#include "mlsreg/io/io.h"
 #include "mlsreg/v1/mlsreg.grpc.pb.h"
 #include "mlsreg/wire/convert.h"
 
@@ -33,11 +34,12 @@ constexpr char kTargetHeader[] = "x-mlsreg-target";
 constexpr std::chrono::seconds kDownTime{2};
 
 absl::StatusOr<std::string> ReadFile(const std::string& path, const char* what) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return absl::NotFoundError(absl::StrCat("cannot read ", what, " '", path, "'"));
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  return buffer.str();
+  absl::StatusOr<std::string> bytes = ReadFileBytes(path);
+  if (!bytes.ok()) {
+    return absl::Status(bytes.status().code(),
+                        absl::StrCat("cannot read ", what, ": ", bytes.status().message()));
+  }
+  return bytes;
 }
 
 TargetInfo FromProto(const v1::Target& t) {

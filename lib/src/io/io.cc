@@ -20,7 +20,6 @@ namespace mlsreg {
 namespace {
 
 using io_internal::LowerCaseExtension;
-using io_internal::ReadFileBytes;
 
 enum class FileFormat { kPly, kPcd, kXyz, kNpy };
 
@@ -65,6 +64,8 @@ std::string LowerCaseExtension(const std::string& path) {
   return absl::AsciiStrToLower(path.substr(dot));
 }
 
+}  // namespace io_internal
+
 absl::StatusOr<std::string> ReadFileBytes(const std::string& path) {
   errno = 0;
   FilePtr file(std::fopen(path.c_str(), "rb"));
@@ -76,8 +77,6 @@ absl::StatusOr<std::string> ReadFileBytes(const std::string& path) {
   if (std::ferror(file.get())) return FileError(errno, "read", path);
   return bytes;
 }
-
-}  // namespace io_internal
 
 namespace {
 

@@ -26,6 +26,7 @@
 #include "absl/strings/string_view.h"
 #include "mlsreg/core/point_cloud.h"
 #include "mlsreg/core/triangle_mesh.h"
+#include "mlsreg/io/io.h"
 
 namespace mlsreg::io_internal {
 
@@ -144,8 +145,7 @@ inline bool NextToken(std::string_view* rest, std::string_view* token) {
 
 // The extension of the last path component, lower-cased, with its dot (".ply"); empty if none.
 std::string LowerCaseExtension(const std::string& path);
-// The whole file; NotFound when it or a directory on its path does not exist, else Unavailable.
-absl::StatusOr<std::string> ReadFileBytes(const std::string& path);
+using ::mlsreg::ReadFileBytes;  // io.h
 
 // ---------------------------------------------------------------------------------------------
 // Numbers.

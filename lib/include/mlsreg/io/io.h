@@ -77,6 +77,11 @@ std::string SerializeNpy(const PointCloud& cloud);
 // its message is prefixed with "<path>: ".
 absl::StatusOr<PointCloud> ReadPointCloud(const std::string& path);
 
+// The whole file, the one file reader of the project (clouds, meshes, sidecars, configs, keys).
+// NotFound when it or a directory on its path does not exist, else Unavailable; the message
+// names the path and the system's reason.
+absl::StatusOr<std::string> ReadFileBytes(const std::string& path);
+
 struct WriteOptions {
   PlyEncoding ply = PlyEncoding::kBinaryLittleEndian;
   PcdEncoding pcd = PcdEncoding::kBinary;
