@@ -8,6 +8,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "mlsreg/io/io.h"
 
 namespace mlsreg {
 
@@ -56,11 +57,12 @@ absl::StatusOr<PinholeIntrinsics> ParseIntrinsics(std::string_view text, std::st
 
 absl::StatusOr<PinholeIntrinsics> ReadIntrinsicsSidecar(const std::string& scan_path) {
   const std::string path = scan_path + ".intrinsics";
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return absl::NotFoundError("no intrinsics sidecar '" + path + "'");
-  std::ostringstream text;
-  text << in.rdbuf();
-  return ParseIntrinsics(text.str(), path);
+  absl::StatusOr<std::string> text = ReadFileBytes(path);
+  if (absl::IsNotFound(text.status())) {
+    return absl::NotFoundError("no intrinsics sidecar '" + path + "'");
+  }
+  if (!text.ok()) return text.status();
+  return ParseIntrinsics(*text, path);
 }
 
 std::string FormatIntrinsics(const PinholeIntrinsics& k) {

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "absl/strings/str_cat.h"
+#include "mlsreg/io/io.h"
 
 namespace mlsreg {
 
@@ -113,11 +114,12 @@ absl::StatusOr<Manifest> ParseManifest(std::string_view csv, const std::string& 
 }
 
 absl::StatusOr<Manifest> ReadManifest(const std::string& path) {
-  std::ifstream file(path, std::ios::binary);
-  if (!file) return absl::NotFoundError(absl::StrCat("cannot open manifest '", path, "'"));
-  std::stringstream buffer;
-  buffer << file.rdbuf();
-  return ParseManifest(buffer.str(), std::filesystem::path(path).parent_path().string());
+  absl::StatusOr<std::string> text = ReadFileBytes(path);
+  if (!text.ok()) {
+    return absl::Status(text.status().code(),
+                        absl::StrCat("cannot read manifest: ", text.status().message()));
+  }
+  return ParseManifest(*text, std::filesystem::path(path).parent_path().string());
 }
 
 }  // namespace mlsreg
