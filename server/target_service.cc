@@ -31,6 +31,16 @@ std::uint64_t MinTargetBytes(const v1::CloudHeader& cloud) {
   return cloud.point_count() * per_point + grid;
 }
 
+// "sha256:" followed by 64 lower-case hex digits, the form CloudDigest writes.
+bool IsDigest(std::string_view text) {
+  constexpr std::string_view kPrefix = "sha256:";
+  if (text.size() != kPrefix.size() + 64 || text.substr(0, kPrefix.size()) != kPrefix) return false;
+  for (char c : text.substr(kPrefix.size())) {
+    if (!((c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'))) return false;
+  }
+  return true;
+}
+
 // The decoded cloud an upload becomes (points, normals), held in flight until it is built.
 std::uint64_t DecodedBytes(const v1::CloudHeader& cloud) {
   return cloud.point_count() * sizeof(Vec3) * (cloud.has_normals() ? 2 : 1);
@@ -117,7 +127,7 @@ class CreateTargetCall final : public StreamingCall<CreateTargetReactor> {
       return s;
     }
     scope_.set_target_id(header_.target_id());
-    if (!header_.content_digest().empty() && header_.content_digest().rfind("sha256:", 0) != 0) {
+    if (!header_.content_digest().empty() && !IsDigest(header_.content_digest())) {
       return absl::InvalidArgumentError(
           "header.content_digest: must be \"sha256:\" + 64 hex digits (Target.content_digest)");
     }

@@ -385,6 +385,13 @@ TEST(AbuseTest, OtherContentUnderATakenIdIsRefusedAndTheSameContentIsIdempotent)
   messages[0].mutable_header()->set_content_digest(first->digest);
   EXPECT_STATUS(SendCreate(raw, messages), grpc::StatusCode::INVALID_ARGUMENT,
                 "header.content_digest: declared");
+  // A declared digest must have the form the server writes, whatever its length.
+  for (const std::string& bad : {std::string("sha256:xyz"), "sha256:" + std::string(10000, 'a'),
+                                 "md5:" + std::string(64, '0')}) {
+    messages[0].mutable_header()->set_content_digest(bad);
+    EXPECT_STATUS(SendCreate(raw, messages), grpc::StatusCode::INVALID_ARGUMENT,
+                  "header.content_digest: must be");
+  }
 }
 
 // ---- 7. retries that cannot help
