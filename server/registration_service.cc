@@ -2,7 +2,7 @@
 //  1. admission (token, draining, per-peer stream limit: StreamingCall);
 //  2. the header, validated whole: ids, method, parameters, transforms, the source's declared
 //     size, the target (pinned when resident) and what the method needs of it;
-//  3. a place in the job queue and the source's in-flight bytes, reserved before any data is
+//  3. room in the job queue and in the in-flight budget for the source, checked before any data is
 //     read, so a request that cannot run is refused before it is transferred;
 //  4. the source: inline in the header or in chunks, the buffer growing as data arrives;
 //  5. the job on a worker; its progress is relayed as the client reads (latest wins), then the
@@ -169,7 +169,7 @@ class RegisterCall final : public StreamingCall<RegisterReactor> {
     return payload_->Append(request_.source_chunk());
   }
 
-  // Step 5: decode, hand the job to its reserved place, announce it.
+  // Step 5: decode, queue the job, announce it.
   absl::Status Submit() {
     std::string payload = inline_source_ ? std::move(*inline_source_) : payload_->Release();
     if (absl::Status s = lease_->Grow(decoded_bytes_, "source"); !s.ok()) return s;

@@ -59,8 +59,9 @@ void ToProto(const TargetInfo& info, v1::Target* out) {
 }
 
 // One CreateTarget call on gRPC's callback API: admission (StreamingCall), the header (id,
-// declared size, digest, cache fit), a place in the job queue and the upload's in-flight bytes
-// before any data is read, the chunks (the buffer grows as they arrive), then on a worker:
+// declared size, digest, cache fit), room in the job queue and the in-flight budget checked
+// before any data is read, the chunks (the buffer and the bytes counted grow as they arrive),
+// then on a worker:
 // decode, digest, build (cancellable) and insert.
 using CreateTargetReactor = grpc::ServerReadReactor<v1::CreateTargetRequest>;
 
