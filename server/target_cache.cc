@@ -171,9 +171,11 @@ absl::StatusOr<TargetInfo> TargetCache::Insert(const std::string& id,
     if (staged) store_->Discard(*staged);
     return status;
   };
-  if (auto existing = ExistingLocked(id, digest); !existing.ok() || existing->has_value()) {
-    fail(absl::OkStatus());  // created concurrently meanwhile: theirs stays
-    if (!existing.ok()) return existing.status();
+  // Created concurrently meanwhile: theirs stays, our staged files go.
+  auto existing = ExistingLocked(id, digest);
+  if (!existing.ok()) return fail(existing.status());
+  if (existing->has_value()) {
+    if (staged) store_->Discard(*staged);
     return **existing;
   }
   if (absl::Status s = MakeRoomLocked(meta.memory_bytes, id); !s.ok()) return fail(s);
