@@ -47,7 +47,7 @@ PY
 # Bad input is refused with INVALID_ARGUMENT naming the field.
 if "$MLSREG" register --server "$A" --target bun045 --source data/bunny/bun000.ply --mls-radius -1 \
     2> "$work/bad.txt"; then fail "negative radius accepted"; fi
-grep -q "mls.radius_d" "$work/bad.txt" || fail "bad radius: $(cat "$work/bad.txt")"
+grep -q -- "--mls-radius must be in" "$work/bad.txt" || fail "bad radius: $(cat "$work/bad.txt")"
 
 # Batch: three jobs, one with a missing source; exit 1, two ok rows; --resume re-runs only that one.
 cat > "$work/jobs.csv" <<CSV

@@ -145,9 +145,9 @@ TEST(AbuseTest, ParametersThatWouldUnboundMemoryAreRefusedNamingTheField) {
     const char* field;
   };
   for (const Case& c : std::vector<Case>{
-           {[](RegistrationOptions& o) { o.fgr.samples = 20000; }, "parameters.fgr.samples"},
+           {[](RegistrationOptions& o) { o.fgr.samples = 20000; }, "parameters.fgr_samples"},
            {[](RegistrationOptions& o) { o.fgr.feature_radius_d = 1000; },
-            "parameters.fgr.feature_radius_d"},
+            "parameters.fgr_feature_radius_d"},
            {[](RegistrationOptions& o) { o.num_samples = 10'000'000; }, "parameters.num_samples"},
        }) {
     RegistrationOptions options = QuickOptions();

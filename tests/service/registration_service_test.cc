@@ -192,7 +192,7 @@ TEST_F(RegistrationServiceTest, BadRequestsNameTheFieldWhileAGoodOneRuns) {
   {  // another parameter out of range
     auto m = valid;
     m[0].mutable_header()->mutable_parameters()->set_mls_radius_d(-1.0);
-    EXPECT_STATUS(run(m), grpc::StatusCode::INVALID_ARGUMENT, "parameters.mls.radius_d");
+    EXPECT_STATUS(run(m), grpc::StatusCode::INVALID_ARGUMENT, "parameters.mls_radius_d");
     ++bad;
   }
   {  // the damping and stall stop travel too, and are validated

@@ -1,10 +1,11 @@
-#include "mlsreg/registration/fast_global_registration.h"
-
+// Fast Global Registration (Zhou, Park, Koltun 2016): FPFH matches, the tuple test, then a
+// fixed schedule of Geman-McClure line processes with a shrinking scale. Global: it ignores the
+// initial transform, so it keeps its own loop (no convergence test) on the shared helpers.
 #include <Eigen/Cholesky>
 #include <cmath>
 #include <random>
 
-#include "loop_support.h"
+#include "method_runners.h"
 #include "mlsreg/geometry/fpfh.h"
 #include "mlsreg/geometry/sampling.h"
 #include "mlsreg/geometry/surface_analysis.h"
@@ -73,10 +74,13 @@ std::size_t NearestFeature(const FpfhFeature& f, const std::vector<FpfhFeature>&
 
 }  // namespace
 
-RegistrationResult RunFastGlobalRegistration(const Target& target, const PointCloud& source,
-                                             const RegistrationOptions& options,
-                                             const RegistrationCallbacks& callbacks,
-                                             Clock::time_point start) {
+absl::StatusOr<RegistrationResult> internal::RunFastGlobalRegistration(
+    const RegistrationProblem& problem) {
+  const Target& target = *problem.target;
+  const PointCloud& source = *problem.source;
+  const RegistrationOptions& options = *problem.options;
+  const RegistrationCallbacks& callbacks = *problem.callbacks;
+  const Clock::time_point start = problem.start;
   RegistrationResult result;
   const double d = target.sampling_distance();
   result.sampling_distance = d;

@@ -1,10 +1,12 @@
-#include "mlsreg/registration/generalized_icp.h"
-
+// Generalized ICP (Segal, Haehnel, Thrun 2009), plane-to-plane: each point's covariance is
+// flat along its local plane (epsilon across it), and a Gauss-Newton step minimises the
+// Mahalanobis distances of closest-point pairs under the combined covariances.
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <cmath>
 
-#include "loop_support.h"
+#include "icp_loop.h"
+#include "method_runners.h"
 #include "mlsreg/geometry/sampling.h"
 #include "mlsreg/solvers/rigid_motion.h"
 
@@ -20,8 +22,8 @@ Eigen::Matrix3d Skew(const Vec3& v) {
   return s;
 }
 
-}  // namespace
-
+// The plane-like covariance of the k nearest points to `at` (epsilon along the normal, 1 in the
+// plane); false when fewer than 3 neighbours or a degenerate neighbourhood.
 bool PlaneCovariance(const std::vector<Vec3>& points, const KdTree& tree, const Vec3& at, int k,
                      double epsilon, Eigen::Matrix3d& covariance) {
   constexpr int kMaxNeighbors = 64;
@@ -44,126 +46,121 @@ bool PlaneCovariance(const std::vector<Vec3>& points, const KdTree& tree, const 
   return true;
 }
 
-RegistrationResult RunGeneralizedIcp(const Target& target, const PointCloud& source,
-                                     const Matrix4& initial, const RegistrationOptions& options,
-                                     const RegistrationCallbacks& callbacks,
-                                     Clock::time_point start) {
-  RegistrationResult result;
-  const double d = target.sampling_distance();
-  result.sampling_distance = d;
-  const GicpParams& p = options.gicp;
+using Matrix6 = Eigen::Matrix<double, 6, 6>;
+using Vector6 = Eigen::Matrix<double, 6, 1>;
 
-  Clock::time_point phase = Clock::now();
-  const std::vector<std::uint32_t> indices =
-      RandomSubsample(source.size(), static_cast<std::size_t>(options.num_samples), options.seed);
-  result.num_samples = static_cast<int>(indices.size());
-  result.timings.subsampling = Seconds(phase);
-
-  // Source covariances at the samples.
-  phase = Clock::now();
-  const KdTree source_tree(source.points);
-  const std::size_t m = indices.size();
-  std::vector<Vec3> samples(m);
-  std::vector<Eigen::Matrix3d> source_cov(m);
-  std::vector<std::uint8_t> source_ok(m);
-  for (std::size_t i = 0; i < m; ++i) {
-    samples[i] = source.points[indices[i]];
-    source_ok[i] = PlaneCovariance(source.points, source_tree, samples[i], p.covariance_neighbors,
-                                   p.epsilon, source_cov[i]);
-  }
-  result.timings.preprocessing = Seconds(phase);
-
-  // Target covariances, computed the first time a target point is matched.
-  const std::vector<Vec3>& target_points = target.points();
-  std::vector<Eigen::Matrix3d> target_cov;
-  std::vector<std::int8_t> target_state(target_points.size(), -1);  // -1 unknown, 0 bad, 1 ok
-  target_cov.resize(target_points.size());
-
-  RigidTransform transform(Orthonormalize(initial));
-  const double max_distance_squared = std::pow(p.max_distance_d * d, 2);
-  const double convergence = options.convergence_d * d;
-  result.termination = Termination::kMaxIterations;
-  using Matrix6 = Eigen::Matrix<double, 6, 6>;
-  using Vector6 = Eigen::Matrix<double, 6, 1>;
-  for (int iteration = 1; iteration <= options.max_iterations; ++iteration) {
-    if (callbacks.should_stop && callbacks.should_stop()) {
-      result.termination = Termination::kCancelled;
-      break;
+// G-ICP's match (closest points, covariances) and Gauss-Newton solve.
+class GicpStep final : public internal::IcpStep {
+ public:
+  GicpStep(const Target& target, const PointCloud& source, std::vector<Vec3> samples,
+           const GicpParams& params)
+      : target_(target),
+        params_(params),
+        samples_(std::move(samples)),
+        source_cov_(samples_.size()),
+        source_ok_(samples_.size()),
+        target_cov_(target.points().size()),
+        target_state_(target.points().size(), -1),
+        max_distance_squared_(std::pow(params.max_distance_d * target.sampling_distance(), 2)) {
+    const KdTree source_tree(source.points);
+    for (std::size_t i = 0; i < samples_.size(); ++i) {
+      source_ok_[i] = PlaneCovariance(source.points, source_tree, samples_[i],
+                                      params.covariance_neighbors, params.epsilon, source_cov_[i]);
     }
-    phase = Clock::now();
-    IterationReport report;
-    report.iteration = iteration;
-    Matrix6 h = Matrix6::Zero();
-    Vector6 g = Vector6::Zero();
+  }
+
+  bool Match(const RigidTransform& pose, IterationReport& report) override {
+    const std::vector<Vec3>& target_points = target_.points();
+    h_.setZero();
+    g_.setZero();
     double sum_squared = 0.0;
-    const Eigen::Matrix3d r = transform.linear();
-    for (std::size_t i = 0; i < m; ++i) {
-      const Vec3 x = transform * samples[i];
-      const Neighbor nn = target.tree().Nearest(x);
-      if (!source_ok[i]) {
+    const Eigen::Matrix3d r = pose.linear();
+    for (std::size_t i = 0; i < samples_.size(); ++i) {
+      const Vec3 x = pose * samples_[i];
+      const Neighbor nn = target_.tree().Nearest(x);
+      if (!source_ok_[i]) {
         ++report.counts.invalid;
         continue;
       }
-      if (nn.distance_squared > max_distance_squared) {
+      if (nn.distance_squared > max_distance_squared_) {
         ++report.counts.rejected_distance;
         continue;
       }
-      std::int8_t& state = target_state[nn.index];
-      if (state < 0) {
-        state = PlaneCovariance(target_points, target.tree(), target_points[nn.index],
-                                p.covariance_neighbors, p.epsilon, target_cov[nn.index])
-                    ? 1
-                    : 0;
+      std::int8_t& state = target_state_[nn.index];
+      if (state < 0) {  // target covariances are computed the first time a point is matched
+        state =
+            PlaneCovariance(target_points, target_.tree(), target_points[nn.index],
+                            params_.covariance_neighbors, params_.epsilon, target_cov_[nn.index])
+                ? 1
+                : 0;
       }
       if (state == 0) {
         ++report.counts.invalid;
         continue;
       }
-      const Eigen::Matrix3d combined = target_cov[nn.index] + r * source_cov[i] * r.transpose();
+      const Eigen::Matrix3d combined = target_cov_[nn.index] + r * source_cov_[i] * r.transpose();
       const Eigen::Matrix3d information = combined.inverse();
       const Vec3 e = target_points[nn.index] - x;  // residual after x' = exp(delta) x
       Eigen::Matrix<double, 3, 6> jacobian;        // de/d(omega, v) = [ [x]x, -I ]
       jacobian.leftCols<3>() = Skew(x);
       jacobian.rightCols<3>() = -Eigen::Matrix3d::Identity();
-      h.noalias() += jacobian.transpose() * information * jacobian;
-      g.noalias() += jacobian.transpose() * information * e;
+      h_.noalias() += jacobian.transpose() * information * jacobian;
+      g_.noalias() += jacobian.transpose() * information * e;
       sum_squared += e.squaredNorm();
       ++report.counts.matched;
     }
-    internal::SetRmse(report, sum_squared, d);
-    result.timings.matching += Seconds(phase);
-
-    bool converged = false;
-    if (report.counts.matched >= options.min_correspondences) {
-      phase = Clock::now();
-      const Vector6 delta = SolveConstrainedStep(h, -g);
-      if (delta.allFinite()) {
-        const RigidTransform step = TwistIncrement(delta);
-        double max_move = 0.0;
-        for (const Vec3& s : samples) {
-          const Vec3 x = transform * s;
-          max_move = std::max(max_move, (step * x - x).squaredNorm());
-        }
-        transform = step * transform;
-        converged = std::sqrt(max_move) < convergence;
-      }
-      result.timings.optimisation += Seconds(phase);
-    }
-    result.iterations = iteration;
-    internal::RecordIteration(result, report, transform, callbacks, start);
-    if (report.counts.matched < options.min_correspondences) {
-      result.termination = Termination::kTooFewCorrespondences;
-      break;
-    }
-    if (converged) {
-      result.termination = Termination::kConverged;
-      result.converged = true;
-      break;
-    }
+    internal::SetRmse(report, sum_squared, target_.sampling_distance());
+    return true;
   }
-  result.transform = transform.matrix();
-  result.timings.total = Seconds(start);
+
+  std::optional<RigidTransform> Solve(IterationReport&) override {
+    const Vector6 delta = SolveConstrainedStep(h_, -g_);
+    if (!delta.allFinite()) return std::nullopt;
+    return TwistIncrement(delta);
+  }
+
+  std::span<const Vec3> moved_samples() const override { return {}; }  // kStepSize rule only
+  std::span<const Vec3> samples() const override { return samples_; }
+
+ private:
+  const Target& target_;
+  GicpParams params_;
+  std::vector<Vec3> samples_;
+  std::vector<Eigen::Matrix3d> source_cov_;
+  std::vector<std::uint8_t> source_ok_;
+  std::vector<Eigen::Matrix3d> target_cov_;
+  std::vector<std::int8_t> target_state_;  // -1 unknown, 0 bad, 1 ok
+  double max_distance_squared_;
+  Matrix6 h_;
+  Vector6 g_;
+};
+
+}  // namespace
+
+namespace internal {
+
+absl::StatusOr<RegistrationResult> RunGeneralizedIcp(const RegistrationProblem& problem) {
+  const RegistrationOptions& options = *problem.options;
+  RegistrationResult result;
+  const double d = problem.target->sampling_distance();
+  result.sampling_distance = d;
+  SourceSamples sampled = SubsampleSource(*problem.source, options, result);
+
+  const Clock::time_point phase = Clock::now();  // source covariances at the samples
+  GicpStep step(*problem.target, *problem.source, std::move(sampled.points), options.gicp);
+  result.timings.preprocessing = Seconds(phase);
+
+  LoopSettings settings;
+  settings.rule = StopRule::kStepSize;
+  settings.max_iterations = options.max_iterations;
+  settings.min_correspondences = options.min_correspondences;
+  settings.convergence = options.convergence_d * d;
+  settings.iteration_offset = problem.iteration_offset;
+  RunIcpLoop(step, RigidTransform(Orthonormalize(problem.initial)), settings, *problem.callbacks,
+             problem.start, result);
+  result.timings.total = Seconds(problem.start);
   return result;
 }
 
+}  // namespace internal
 }  // namespace mlsreg

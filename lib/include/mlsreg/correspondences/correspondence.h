@@ -36,6 +36,10 @@ class CorrespondenceFinder {
   // rather than fixed target samples or points along a viewing ray. The point-to-plane step then
   // damps sliding (RegistrationOptions::tangential_damping).
   virtual bool foot_points() const { return false; }
+  // The radius at which the source's normals and surface variation are analysed, so that the
+  // curvature filter compares like with like: the scale of this policy's partners (MLS: its
+  // support radius); 0 for the target's own analysis radius (its normals and curvature).
+  virtual double analysis_radius() const { return 0.0; }
 
   // Finders whose queries are expensive (MLS) ask this while they search and return early, with
   // the rest of `out` unset, once it says stop; the caller then asks it too and stops.

@@ -39,6 +39,7 @@ class MlsCorrespondenceFinder final : public CorrespondenceFinder {
   bool oriented_normals() const override { return oriented_; }
   bool can_refine() const override { return far_queries_ == FarQueryPolicy::kSeedUntilConverged; }
   bool foot_points() const override { return true; }
+  double analysis_radius() const override { return radius_; }
   void Refine() override;
 
   // Status of each sample's last projection (for statistics and tests).

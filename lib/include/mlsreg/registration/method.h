@@ -1,12 +1,18 @@
-// Method: the registration methods (the paper's MLS-SICP and its comparators), their names and
-// what each needs of the target.
+// Method: the registration methods (the paper's MLS-SICP and its comparators) and the method
+// table, one row per method: its name, its wire name, what the target must carry, which
+// parameter groups it reads, and the runner that registers with it. Name, parse, list,
+// preconditions, dispatch, the wire enum mapping and the CLI help all read the table, so adding
+// a method is one row (lib/src/registration/method_table.cc) plus its code.
 #pragma once
 
+#include <memory>
+#include <span>
 #include <string_view>
 #include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "mlsreg/registration/enum_names.h"
 
 namespace mlsreg {
 
@@ -30,6 +36,48 @@ enum class Method {
   kRcBl,
   kRcP,
 };
+
+// What a method needs of the target.
+enum class TargetRequirement {
+  kAnyCloud,
+  kOrganised,  // pinhole intrinsics, so that the target has a depth grid
+};
+
+// Groups of registration parameters (RegistrationOptions); a method reads a set of them.
+enum ParameterGroup : unsigned {
+  kCommonParameters = 1u << 0,  // samples, seed, iterations, convergence, min correspondences
+  kSparseIcpParameters = 1u << 1,
+  kMlsParameters = 1u << 2,
+  kFilterParameters = 1u << 3,
+  kGicpParameters = 1u << 4,
+  kFgrParameters = 1u << 5,
+};
+
+class CorrespondenceFinder;
+class Target;
+struct RegistrationOptions;
+struct RegistrationProblem;  // lib/src/registration/method_runners.h
+struct RegistrationResult;
+
+struct MethodSpec {
+  Method method;
+  std::string_view name;         // "mls-sicp": CLI, reports, CSV columns
+  std::string_view wire_suffix;  // "MLS_SICP": the wire enum value METHOD_<suffix>
+  std::string_view summary;      // one line for help texts
+  TargetRequirement target;
+  unsigned parameter_groups;  // ParameterGroup bits
+  // The correspondence policy of a Sparse ICP method; null for G-ICP and FGR.
+  std::unique_ptr<CorrespondenceFinder> (*make_finder)(const Target& target,
+                                                       const RegistrationOptions& options);
+  absl::StatusOr<RegistrationResult> (*run)(const RegistrationProblem& problem);
+};
+
+// Every method, in the order of the paper's tables.
+std::span<const MethodSpec> MethodTable();
+const MethodSpec& SpecOf(Method method);
+// The methods' names as an enum table (wire enum "Method").
+const EnumNames& MethodNames();
+
 std::string_view MethodName(Method method);  // "cp-sicp", "mls-sicp", "st-sicp", ...
 absl::StatusOr<Method> ParseMethod(std::string_view name);
 std::vector<Method> AllMethods();
@@ -37,7 +85,5 @@ std::vector<Method> AllMethods();
 bool NeedsOrganisedTarget(Method method);
 // FAILED_PRECONDITION naming the method, for a target without intrinsics.
 absl::Status OrganisedTargetRequired(Method method);
-
-// Every length below is in units of the target's sampling distance d (paper Eq. 11).
 
 }  // namespace mlsreg

@@ -9,6 +9,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "mlsreg/correspondences/correspondence_finders.h"
+#include "mlsreg/registration/enum_names.h"
 #include "mlsreg/registration/method.h"
 #include "mlsreg/solvers/sparse_icp.h"
 
@@ -46,8 +47,11 @@ enum class CoarsePhaseFilters {
   kNormal,  // tau_N only
   kAll,     // tau_N and tau_H from the first iteration, as in the paper
 };
-std::string_view CoarsePhaseFiltersName(CoarsePhaseFilters filters);  // "none", "normal", "all"
-absl::StatusOr<CoarsePhaseFilters> ParseCoarsePhaseFilters(std::string_view name);
+
+// The option enums' names ("all", "seed-until-converged", "point-to-plane", ...) and wire values.
+const EnumNames& CoarsePhaseFiltersNames();
+const EnumNames& FarQueryPolicyNames();
+const EnumNames& SicpMetricNames();
 
 struct FilterParams {
   double min_normal_dot = 0.7;        // tau_N; <= -1 disables
@@ -98,7 +102,8 @@ inline constexpr int kMaxNumSamples = 1'000'000;
 inline constexpr int kMaxFgrSamples = 10'000;
 inline constexpr double kMaxFgrFeatureRadiusD = 100.0;
 
-// Validates every field; the message names it (e.g. "mls.radius_d must be in (0, 100]").
+// Validates every field against its row of the parameter table (parameters.h); the message
+// names it (e.g. "mls.radius_d must be in (0, 100]").
 absl::Status ValidateOptions(const RegistrationOptions& options);
 
 }  // namespace mlsreg

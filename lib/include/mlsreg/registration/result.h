@@ -8,6 +8,7 @@
 
 #include "mlsreg/core/transform.h"
 #include "mlsreg/correspondences/correspondence_filter.h"
+#include "mlsreg/registration/enum_names.h"
 
 namespace mlsreg {
 // Streamed once per ICP iteration.
@@ -27,7 +28,8 @@ enum class Termination {
   kCancelled,              // should_stop returned true
   kTooFewCorrespondences,  // fewer than min_correspondences survived the filters
 };
-std::string_view TerminationName(Termination termination);
+std::string_view TerminationName(Termination termination);  // "converged", ...
+const EnumNames& TerminationNames();                        // wire enum "Termination"
 
 // Wall time of the phases of paper Figure 6.
 struct PhaseTimings {

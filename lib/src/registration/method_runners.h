@@ -1,0 +1,61 @@
+// The runners of the method table (method_table.cc): one registration problem in, a result out.
+// Inputs are validated by Register before a runner is called.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "loop_support.h"
+#include "mlsreg/core/point_cloud.h"
+#include "mlsreg/correspondences/correspondence.h"
+#include "mlsreg/geometry/target.h"
+#include "mlsreg/registration/method.h"
+#include "mlsreg/registration/options.h"
+#include "mlsreg/registration/result.h"
+
+namespace mlsreg {
+
+// Pointers, never null, so that a composite method can pose a phase as a changed copy.
+struct RegistrationProblem {
+  const Target* target;
+  const PointCloud* source;
+  Matrix4 initial;
+  const RegistrationOptions* options;
+  const RegistrationCallbacks* callbacks;
+  internal::Clock::time_point start;
+  int iteration_offset = 0;  // iterations of earlier phases (composite methods)
+};
+
+namespace internal {
+
+// The source's random samples (result.num_samples and timings.subsampling are set).
+struct SourceSamples {
+  std::vector<std::uint32_t> indices;
+  std::vector<Vec3> points;
+};
+SourceSamples SubsampleSource(const PointCloud& source, const RegistrationOptions& options,
+                              RegistrationResult& result);
+
+// Correspondence policies (MethodSpec::make_finder).
+std::unique_ptr<CorrespondenceFinder> MakeClosestPointFinder(const Target& target,
+                                                             const RegistrationOptions& options);
+std::unique_ptr<CorrespondenceFinder> MakeMlsFinder(const Target& target,
+                                                    const RegistrationOptions& options);
+std::unique_ptr<CorrespondenceFinder> MakeBilinearFinder(const Target& target,
+                                                         const RegistrationOptions& options);
+std::unique_ptr<CorrespondenceFinder> MakePhongFinder(const Target& target,
+                                                      const RegistrationOptions& options);
+
+// Sparse ICP with the correspondences of problem.options.method (CP-SICP, MLS-SICP, RC-*).
+absl::StatusOr<RegistrationResult> RunSparseIcp(const RegistrationProblem& problem);
+// ST-SICP: CP-SICP on the target smoothed onto its own MLS surface.
+absl::StatusOr<RegistrationResult> RunSmoothedTargetSicp(const RegistrationProblem& problem);
+// CP-SICP+MLS-SICP: unfiltered CP-SICP to convergence, then MLS-SICP from there.
+absl::StatusOr<RegistrationResult> RunCpThenMlsSicp(const RegistrationProblem& problem);
+absl::StatusOr<RegistrationResult> RunGeneralizedIcp(const RegistrationProblem& problem);
+absl::StatusOr<RegistrationResult> RunFastGlobalRegistration(const RegistrationProblem& problem);
+
+}  // namespace internal
+}  // namespace mlsreg

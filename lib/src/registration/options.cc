@@ -1,0 +1,47 @@
+#include "mlsreg/registration/options.h"
+
+#include "mlsreg/registration/parameters.h"
+
+namespace mlsreg {
+
+const EnumNames& CoarsePhaseFiltersNames() {
+  static constexpr EnumValueName kValues[] = {
+      {static_cast<int>(CoarsePhaseFilters::kAll), "all", "ALL"},
+      {static_cast<int>(CoarsePhaseFilters::kNormal), "normal", "NORMAL"},
+      {static_cast<int>(CoarsePhaseFilters::kNone), "none", "NONE"},
+  };
+  static constexpr EnumNames kNames{"CoarsePhaseFilters", "COARSE_PHASE_FILTERS_", kValues};
+  return kNames;
+}
+
+const EnumNames& FarQueryPolicyNames() {
+  static constexpr EnumValueName kValues[] = {
+      {static_cast<int>(FarQueryPolicy::kSeedUntilConverged), "seed-until-converged",
+       "SEED_UNTIL_CONVERGED"},
+      {static_cast<int>(FarQueryPolicy::kSeed), "seed", "SEED"},
+      {static_cast<int>(FarQueryPolicy::kDrop), "drop", "DROP"},
+  };
+  static constexpr EnumNames kNames{"FarQueryPolicy", "FAR_QUERY_POLICY_", kValues};
+  return kNames;
+}
+
+const EnumNames& SicpMetricNames() {
+  static constexpr EnumValueName kValues[] = {
+      {static_cast<int>(SicpMetric::kPointToPlane), "point-to-plane", "POINT_TO_PLANE"},
+      {static_cast<int>(SicpMetric::kPointToPoint), "point-to-point", "POINT_TO_POINT"},
+  };
+  static constexpr EnumNames kNames{"SicpMetric", "SICP_METRIC_", kValues};
+  return kNames;
+}
+
+absl::Status ValidateOptions(const RegistrationOptions& options) {
+  for (const ParameterSpec& spec : ParameterTable()) {
+    if (absl::Status s = spec.Check(spec.get(options), spec.name); !s.ok()) return s;
+  }
+  // The solver's constants (mu, alpha, ...) are not registration parameters but are checked too.
+  SparseIcpOptions sicp = options.sicp;
+  sicp.length_unit = 1.0;  // derived from sicp_length_unit_d, checked above
+  return ValidateSparseIcpOptions(sicp);
+}
+
+}  // namespace mlsreg

@@ -1,0 +1,95 @@
+#include "mlsreg/wire/results_codec.h"
+
+#include "mlsreg/wire/enum_codec.h"
+#include "mlsreg/wire/transform_codec.h"
+
+namespace mlsreg::wire {
+
+v1::Termination TerminationToProto(Termination t) {
+  return static_cast<v1::Termination>(EnumToWire(TerminationNames(), static_cast<int>(t)));
+}
+
+Termination TerminationFromProto(v1::Termination t) {
+  return EnumFromWire(TerminationNames(), t, Termination::kMaxIterations, "termination")
+      .value_or(Termination::kMaxIterations);
+}
+
+void ToProto(const IterationReport& r, v1::Progress* out) {
+  out->set_iteration(r.iteration);
+  ToProto(r.transform, out->mutable_transform());
+  out->set_rmse(r.rmse);
+  out->set_rmse_d(r.rmse_d);
+  v1::CorrespondenceCounts* c = out->mutable_counts();
+  c->set_matched(r.counts.matched);
+  c->set_rejected_normal(r.counts.rejected_normal);
+  c->set_rejected_curvature(r.counts.rejected_curvature);
+  c->set_rejected_distance(r.counts.rejected_distance);
+  c->set_invalid(r.counts.invalid);
+  out->set_admm_iterations(r.admm_iterations);
+  out->set_elapsed_seconds(r.elapsed_seconds);
+}
+
+IterationReport FromProto(const v1::Progress& p) {
+  IterationReport r;
+  r.iteration = p.iteration();
+  if (p.transform().row_major_size() == 16) {
+    for (int i = 0; i < 16; ++i) r.transform(i / 4, i % 4) = p.transform().row_major(i);
+  }
+  r.rmse = p.rmse();
+  r.rmse_d = p.rmse_d();
+  r.counts.matched = p.counts().matched();
+  r.counts.rejected_normal = p.counts().rejected_normal();
+  r.counts.rejected_curvature = p.counts().rejected_curvature();
+  r.counts.rejected_distance = p.counts().rejected_distance();
+  r.counts.invalid = p.counts().invalid();
+  r.admm_iterations = p.admm_iterations();
+  r.elapsed_seconds = p.elapsed_seconds();
+  return r;
+}
+
+void ToProto(const RegistrationResult& r, v1::Result* out) {
+  ToProto(r.transform, out->mutable_transform());
+  out->set_converged(r.converged);
+  out->set_termination(TerminationToProto(r.termination));
+  out->set_iterations(r.iterations);
+  v1::Timings* t = out->mutable_timings();
+  t->set_preprocessing_seconds(r.timings.preprocessing);
+  t->set_subsampling_seconds(r.timings.subsampling);
+  t->set_matching_seconds(r.timings.matching);
+  t->set_optimisation_seconds(r.timings.optimisation);
+  t->set_registration_seconds(r.timings.total);
+  out->set_sampling_distance(r.sampling_distance);
+  out->set_num_samples(r.num_samples);
+}
+
+RegistrationResult FromProto(const v1::Result& p) {
+  RegistrationResult r;
+  if (p.transform().row_major_size() == 16) {
+    for (int i = 0; i < 16; ++i) r.transform(i / 4, i % 4) = p.transform().row_major(i);
+  }
+  r.converged = p.converged();
+  r.termination = TerminationFromProto(p.termination());
+  r.iterations = p.iterations();
+  r.timings.preprocessing = p.timings().preprocessing_seconds();
+  r.timings.subsampling = p.timings().subsampling_seconds();
+  r.timings.matching = p.timings().matching_seconds();
+  r.timings.optimisation = p.timings().optimisation_seconds();
+  r.timings.total = p.timings().registration_seconds();
+  r.sampling_distance = p.sampling_distance();
+  r.num_samples = p.num_samples();
+  return r;
+}
+
+void ToProto(const PoseError& error, v1::GroundTruthError* out) {
+  out->set_rmse_d(error.rmse_d);
+  out->set_success(error.success);
+  out->set_rotation_error_deg(error.rotation_deg);
+  out->set_translation_error_d(error.translation_d);
+}
+
+PoseError FromProto(const v1::GroundTruthError& error) {
+  return PoseError{error.rmse_d(), error.success(), error.rotation_error_deg(),
+                   error.translation_error_d()};
+}
+
+}  // namespace mlsreg::wire

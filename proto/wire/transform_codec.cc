@@ -1,0 +1,28 @@
+#include "mlsreg/wire/transform_codec.h"
+
+#include "absl/strings/str_cat.h"
+
+namespace mlsreg::wire {
+
+void ToProto(const Matrix4& m, v1::Transform* out) {
+  out->clear_row_major();
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) out->add_row_major(m(r, c));
+  }
+}
+
+absl::StatusOr<Matrix4> FromProto(const v1::Transform& t, std::string_view field) {
+  const std::string f(field);
+  if (t.row_major_size() != 16) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(f, ": needs 16 row-major numbers, got ", t.row_major_size()));
+  }
+  Matrix4 m;
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) m(r, c) = t.row_major(4 * r + c);
+  }
+  if (absl::Status s = CheckRigid(m, f); !s.ok()) return s;
+  return m;
+}
+
+}  // namespace mlsreg::wire
