@@ -18,13 +18,14 @@ int Fail(const char* command, const absl::Status& status) {
   return status.code() == absl::StatusCode::kInvalidArgument ? 2 : 1;
 }
 
-void PrintTarget(const client::TargetInfo& t) {
+void PrintTarget(const TargetInfo& t) {
   std::printf(
       "%-32s %-7s %10llu points  d = %-10.6g %8.1f MiB  built in %.3f s  %llu registrations  "
-      "%.23s\n",
-      t.id.c_str(), t.state.c_str(), static_cast<unsigned long long>(t.points), t.sampling_distance,
+      "%.23s%s\n",
+      t.id.c_str(), std::string(NameOf(TargetStateNames(), t.state)).c_str(),
+      static_cast<unsigned long long>(t.point_count), t.sampling_distance,
       t.memory_bytes / 1048576.0, t.build_seconds, static_cast<unsigned long long>(t.registrations),
-      t.digest.c_str());
+      t.digest.c_str(), t.has_intrinsics ? "  organised" : "");
 }
 
 struct TargetsArgs {
@@ -64,7 +65,7 @@ CommandRunner AddTargetsCommand(CLI::App& app) {
     } else if (list->parsed()) {
       auto all = (*client)->ListTargets();
       if (!all.ok()) return Fail("targets list", all.status());
-      for (const client::TargetInfo& t : *all) PrintTarget(t);
+      for (const TargetInfo& t : *all) PrintTarget(t);
       std::printf("%zu targets\n", all->size());
     } else if (remove->parsed()) {
       if (absl::Status s = (*client)->DeleteTarget(args->id); !s.ok()) {

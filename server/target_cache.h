@@ -19,23 +19,10 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "mlsreg/geometry/target.h"
+#include "mlsreg/geometry/target_info.h"
 #include "server/target_store.h"
 
 namespace mlsreg::server {
-
-enum class TargetState { kReady, kStored };
-
-struct TargetInfo {
-  std::string id;
-  TargetState state = TargetState::kReady;
-  std::uint64_t point_count = 0;
-  std::uint64_t memory_bytes = 0;  // resident bytes, or the last known value when STORED
-  double sampling_distance = 0.0;
-  double build_seconds = 0.0;
-  std::uint64_t registrations = 0;
-  bool has_intrinsics = false;  // organised scan: reverse calibration can use it
-  std::string digest;           // CloudDigest of its content
-};
 
 struct CacheCounters {
   // Held by resident targets, and by deleted ones that registrations still use.

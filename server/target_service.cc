@@ -46,18 +46,6 @@ std::uint64_t DecodedBytes(const v1::CloudHeader& cloud) {
   return cloud.point_count() * sizeof(Vec3) * (cloud.has_normals() ? 2 : 1);
 }
 
-void ToProto(const TargetInfo& info, v1::Target* out) {
-  out->set_target_id(info.id);
-  out->set_state(info.state == TargetState::kReady ? v1::TARGET_STATE_READY
-                                                   : v1::TARGET_STATE_STORED);
-  out->set_point_count(info.point_count);
-  out->set_memory_bytes(info.memory_bytes);
-  out->set_sampling_distance(info.sampling_distance);
-  out->set_build_seconds(info.build_seconds);
-  out->set_registrations(info.registrations);
-  out->set_content_digest(info.digest);
-}
-
 // One CreateTarget call on gRPC's callback API: admission (StreamingCall), the header (id,
 // declared size, digest, cache fit), room in the job queue and the in-flight budget checked
 // before any data is read, the chunks (the buffer and the bytes counted grow as they arrive),
@@ -139,7 +127,7 @@ class CreateTargetCall final : public StreamingCall<CreateTargetReactor> {
     if (!existing.ok()) return existing.status();
     if (existing->has_value()) {  // the same content is there: nothing to send
       scope_.add_detail("unchanged=true");
-      FinishWith(absl::OkStatus(), [&] { ToProto(**existing, response_); });
+      FinishWith(absl::OkStatus(), [&] { wire::ToProto(**existing, response_); });
       return absl::OkStatus();
     }
     // Refused now, before the data is sent, when it could not be built: no room in the queue
@@ -206,7 +194,7 @@ class CreateTargetCall final : public StreamingCall<CreateTargetReactor> {
       return;
     }
     scope_.add_detail(absl::StrCat("points=", info->point_count));
-    FinishWith(absl::OkStatus(), [&] { ToProto(*info, response_); });
+    FinishWith(absl::OkStatus(), [&] { wire::ToProto(*info, response_); });
   }
 
   v1::Target* const response_;  // owned by gRPC; written only when this call finishes it
@@ -240,7 +228,7 @@ class TargetServiceImpl final
       scope.set_target_id(request->target_id());
       auto info = c_.cache.Info(request->target_id());
       if (!info.ok()) return info.status();
-      ToProto(*info, response);
+      wire::ToProto(*info, response);
       return absl::OkStatus();
     }());
   }
@@ -264,7 +252,7 @@ class TargetServiceImpl final
                                                  : std::min(request->page_size(), kMaxPageSize);
       bool more = false;
       for (const TargetInfo& info : c_.cache.List(request->page_token(), size, &more)) {
-        ToProto(info, response->add_targets());
+        wire::ToProto(info, response->add_targets());
       }
       if (more && response->targets_size() > 0) {
         response->set_next_page_token(response->targets(response->targets_size() - 1).target_id());

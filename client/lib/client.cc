@@ -42,21 +42,6 @@ absl::StatusOr<std::string> ReadFile(const std::string& path, const char* what) 
   return bytes;
 }
 
-TargetInfo FromProto(const v1::Target& t) {
-  TargetInfo info;
-  info.id = t.target_id();
-  info.state = t.state() == v1::TARGET_STATE_READY    ? "ready"
-               : t.state() == v1::TARGET_STATE_STORED ? "stored"
-                                                      : "unknown";
-  info.points = t.point_count();
-  info.memory_bytes = t.memory_bytes();
-  info.sampling_distance = t.sampling_distance();
-  info.build_seconds = t.build_seconds();
-  info.registrations = t.registrations();
-  info.digest = t.content_digest();
-  return info;
-}
-
 // The server's retry hint for a failed call: nullopt when it gave none, a negative value for
 // "never", else the delay it asked for.
 std::optional<std::chrono::milliseconds> RetryAfter(const grpc::ClientContext& context) {
@@ -321,7 +306,7 @@ absl::StatusOr<TargetInfo> Client::Impl::UploadTo(Replica& replica, grpc::Client
   writer->WritesDone();
   const grpc::Status status = writer->Finish();
   if (!status.ok()) return wire::ToAbslStatus(status);
-  return FromProto(response);
+  return wire::FromProto(response);
 }
 
 std::string Client::Impl::DigestOfEncoded(const v1::CloudHeader& header, const std::string& payload,
@@ -365,7 +350,7 @@ absl::StatusOr<TargetInfo> Client::GetTarget(const std::string& id) {
         v1::Target response;
         const grpc::Status status = replica.targets->GetTarget(&context, request, &response);
         if (!status.ok()) return wire::ToAbslStatus(status);
-        return FromProto(response);
+        return wire::FromProto(response);
       });
 }
 
@@ -389,7 +374,7 @@ absl::StatusOr<std::vector<TargetInfo>> Client::ListTargets() {
         return absl::Status(page.status().code(),
                             absl::StrCat(replica->address, ": ", page.status().message()));
       }
-      for (const v1::Target& t : page->targets()) all.push_back(FromProto(t));
+      for (const v1::Target& t : page->targets()) all.push_back(wire::FromProto(t));
       token = page->next_page_token();
     } while (!token.empty());
   }

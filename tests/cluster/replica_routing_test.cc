@@ -80,7 +80,7 @@ TEST(ReplicaRoutingTest, SpreadsTargetsAndSurvivesALostReplica) {
     auto listed = (*direct)->ListTargets();
     ASSERT_TRUE(listed.ok());
     EXPECT_EQ(listed->size(), 2u) << server->address();
-    for (const client::TargetInfo& t : *listed) {
+    for (const TargetInfo& t : *listed) {
       EXPECT_EQ(client.ReplicaFor(t.id), server->address());
     }
   }
@@ -138,7 +138,7 @@ TEST(ReplicaRoutingTest, SpreadsTargetsAndSurvivesALostReplica) {
     ASSERT_TRUE(direct.ok());
     auto listed = (*direct)->ListTargets();
     ASSERT_TRUE(listed.ok());
-    for (const client::TargetInfo& t : *listed) surviving.insert(t.id);
+    for (const TargetInfo& t : *listed) surviving.insert(t.id);
   }
   EXPECT_EQ(surviving.size(), 6u);
 }

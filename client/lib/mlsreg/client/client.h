@@ -20,6 +20,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "mlsreg/evaluation/metrics.h"
+#include "mlsreg/geometry/target_info.h"
 #include "mlsreg/registration/registration.h"
 
 namespace mlsreg::client {
@@ -39,17 +40,6 @@ struct ClientOptions {
   double max_backoff_seconds = 5.0;
   std::size_t chunk_bytes = 1 << 20;  // upload chunk size (the server accepts <= 4 MiB)
   bool float32 = false;               // send coordinates as float32 (half the bytes, rounded)
-};
-
-struct TargetInfo {
-  std::string id;
-  std::string state;  // "ready", "stored"
-  std::uint64_t points = 0;
-  std::uint64_t memory_bytes = 0;
-  double sampling_distance = 0.0;
-  double build_seconds = 0.0;
-  std::uint64_t registrations = 0;
-  std::string digest;  // "sha256:..." of its content (mlsreg/cloud_digest.h)
 };
 
 struct RemoteRegistrationResult {

@@ -12,7 +12,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "mlsreg/registration/enum_names.h"
+#include "mlsreg/core/enum_names.h"
 
 namespace mlsreg {
 

@@ -9,7 +9,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "mlsreg/correspondences/correspondence_finders.h"
-#include "mlsreg/registration/enum_names.h"
+#include "mlsreg/core/enum_names.h"
 #include "mlsreg/registration/method.h"
 #include "mlsreg/solvers/sparse_icp.h"
 

@@ -8,7 +8,7 @@
 
 #include "mlsreg/core/transform.h"
 #include "mlsreg/correspondences/correspondence_filter.h"
-#include "mlsreg/registration/enum_names.h"
+#include "mlsreg/core/enum_names.h"
 
 namespace mlsreg {
 // Streamed once per ICP iteration.

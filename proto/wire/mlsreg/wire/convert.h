@@ -9,4 +9,5 @@
 #include "mlsreg/wire/register_request.h"  // the Register header
 #include "mlsreg/wire/results_codec.h"     // progress, results, ground-truth errors
 #include "mlsreg/wire/status.h"            // absl::Status <-> grpc::Status
+#include "mlsreg/wire/targets_codec.h"     // target descriptions
 #include "mlsreg/wire/transform_codec.h"   // rigid transforms

@@ -6,7 +6,7 @@
 #include <string_view>
 
 #include "absl/status/statusor.h"
-#include "mlsreg/registration/enum_names.h"
+#include "mlsreg/core/enum_names.h"
 
 namespace mlsreg::wire {
 

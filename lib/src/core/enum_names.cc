@@ -1,4 +1,4 @@
-#include "mlsreg/registration/enum_names.h"
+#include "mlsreg/core/enum_names.h"
 
 namespace mlsreg {
 
