@@ -31,9 +31,18 @@ std::string Quoted(std::string_view text) {
 
 }  // namespace
 
-RpcScope::RpcScope(ServiceContext& context, std::string_view rpc, grpc::ServerContextBase* call)
+RpcScope::RpcScope(ServiceContext& context, std::string_view rpc, grpc::ServerContextBase* call,
+                   Admission admission)
     : context_(context), call_(call), rpc_(rpc), start_(std::chrono::steady_clock::now()) {
   context_.state.Enter();
+  admission_ = call_ != nullptr ? context_.auth.Check(*call_, admission.access) : absl::OkStatus();
+  if (admission_.ok() && admission.refused_while_draining && !context_.state.accepting()) {
+    admission_ = absl::UnavailableError("server is shutting down");
+  }
+}
+
+grpc::Status RpcScope::Run(const std::function<absl::Status()>& body) {
+  return Finish(admission_.ok() ? body() : admission_);
 }
 
 RpcScope::~RpcScope() { context_.state.Leave(); }

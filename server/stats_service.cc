@@ -15,8 +15,8 @@ class StatsServiceImpl final : public v1::StatsService::Service {
 
   grpc::Status GetStats(grpc::ServerContext* ctx, const v1::GetStatsRequest*,
                         v1::GetStatsResponse* response) override {
-    RpcScope scope(c_, "GetStats", ctx);
-    if (absl::Status s = c_.auth.Check(*ctx, Access::kUser); !s.ok()) return scope.Finish(s);
+    RpcScope scope(c_, "GetStats", ctx, kReadRpc);
+    if (!scope.admission().ok()) return scope.Finish(scope.admission());
     c_.stats.Fill(response);
     response->set_workers(c_.jobs.workers());
     response->set_active_jobs(c_.jobs.active());

@@ -58,7 +58,7 @@ class StreamingCall : public Reactor, public IdleWatched {
 
  protected:
   StreamingCall(ServiceContext& c, grpc::CallbackServerContext* ctx, std::string_view rpc)
-      : c_(c), ctx_(ctx), scope_(c, rpc, ctx) {}
+      : c_(c), ctx_(ctx), scope_(c, rpc, ctx, kWorkRpc) {}
 
   // The call's work stops (the client cancelled or went idle): cancel jobs, stop builds.
   virtual void Abandoned() = 0;
@@ -103,8 +103,7 @@ class StreamingCall : public Reactor, public IdleWatched {
 
  private:
   absl::Status Admit() {
-    if (absl::Status s = c_.auth.Check(*ctx_, Access::kUser); !s.ok()) return s;
-    if (!c_.state.accepting()) return absl::UnavailableError("server is shutting down");
+    if (!scope_.admission().ok()) return scope_.admission();  // token and draining
     auto ticket = c_.peer_streams.Open(ctx_->peer());
     if (!ticket.ok()) return ticket.status();
     ticket_ = *std::move(ticket);

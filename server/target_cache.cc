@@ -109,7 +109,7 @@ void TargetCache::PruneRetiredLocked() const {
   });
 }
 
-absl::Status TargetCache::MakeRoomLocked(std::uint64_t bytes, std::string_view for_id) {
+absl::Status TargetCache::CheckFitLocked(std::uint64_t bytes, std::string_view for_id) const {
   PruneRetiredLocked();
   if (bytes_ + bytes <= budget_bytes_) return absl::OkStatus();
   if (bytes > budget_bytes_) {
@@ -119,10 +119,9 @@ absl::Status TargetCache::MakeRoomLocked(std::uint64_t bytes, std::string_view f
   }
   // Idle: only the cache holds it. Nobody can take a new reference without the mutex, so a
   // use_count of 1 cannot grow while we decide.
-  auto idle = [](const Entry& e) { return e.target && e.target.use_count() == 1; };
   std::uint64_t evictable = 0;
   for (const auto& [id, e] : entries_) {
-    if (idle(e)) evictable += e.meta.memory_bytes;
+    if (IsIdle(e)) evictable += e.meta.memory_bytes;
   }
   if (bytes_ - evictable + bytes > budget_bytes_) {
     return RetryLater(absl::ResourceExhaustedError(absl::StrCat(
@@ -131,10 +130,15 @@ absl::Status TargetCache::MakeRoomLocked(std::uint64_t bytes, std::string_view f
                           "-byte budget are held by targets in use; retry later")),
                       std::chrono::milliseconds(1000));
   }
+  return absl::OkStatus();
+}
+
+absl::Status TargetCache::MakeRoomLocked(std::uint64_t bytes, std::string_view for_id) {
+  if (absl::Status s = CheckFitLocked(bytes, for_id); !s.ok()) return s;
   while (bytes_ + bytes > budget_bytes_) {
     auto victim = entries_.end();
     for (auto it = entries_.begin(); it != entries_.end(); ++it) {
-      if (idle(it->second) &&
+      if (IsIdle(it->second) &&
           (victim == entries_.end() || it->second.last_use < victim->second.last_use)) {
         victim = it;
       }
@@ -201,11 +205,70 @@ absl::StatusOr<std::shared_ptr<const Target>> TargetCache::Peek(std::string_view
   return it->second.target;
 }
 
-absl::StatusOr<std::shared_ptr<const Target>> TargetCache::Acquire(std::string_view id,
-                                                                   const StopCheck& should_stop) {
+absl::Status TargetCache::WaitToLoadLocked(std::unique_lock<std::mutex>& lock,
+                                           const std::string& id, const StopCheck& should_stop) {
+  while (loading_.count(id)) {
+    loaded_.wait_for(lock, std::chrono::milliseconds(50));
+    if (should_stop && should_stop()) {
+      return absl::CancelledError(
+          absl::StrCat("stopped while target '", id, "' was being built by another request"));
+    }
+  }
+  loading_.insert(id);
+  return absl::OkStatus();
+}
+
+void TargetCache::CountBuild() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++builds_;
+}
+
+void TargetCache::FinishLoadingLocked(const std::string& id) {
+  loading_.erase(id);
+  loaded_.notify_all();
+}
+
+absl::StatusOr<TargetInfo> TargetCache::Create(const std::string& id, PointCloud cloud,
+                                               const std::string& digest,
+                                               const StopCheck& should_stop) {
   {
-    std::lock_guard<std::mutex> lock(mutex_);
-    const auto it = entries_.find(id);
+    std::unique_lock<std::mutex> lock(mutex_);
+    if (absl::Status s = WaitToLoadLocked(lock, id, should_stop); !s.ok()) return s;
+    // A concurrent upload of the id may have finished while this one waited.
+    auto existing = ExistingLocked(id, digest);
+    absl::Status fit =
+        existing.ok() && !existing->has_value()
+            ? CheckFitLocked(
+                  Target::EstimateBytes(cloud.size(), cloud.has_normals(), cloud.intrinsics), id)
+            : absl::OkStatus();
+    if (!existing.ok() || existing->has_value() || !fit.ok()) {
+      FinishLoadingLocked(id);
+      if (!existing.ok()) return existing.status();
+      if (existing->has_value()) return **existing;
+      return fit;
+    }
+  }
+  absl::StatusOr<TargetInfo> result = [&]() -> absl::StatusOr<TargetInfo> {
+    CountBuild();
+    auto target = Target::Build(std::move(cloud), {}, should_stop);
+    if (absl::IsCancelled(target.status())) return target.status();
+    if (!target.ok()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("cloud: cannot build the target: ", target.status().message()));
+    }
+    return Insert(id, *std::move(target), digest);
+  }();
+  std::lock_guard<std::mutex> lock(mutex_);
+  FinishLoadingLocked(id);
+  return result;
+}
+
+absl::StatusOr<std::shared_ptr<const Target>> TargetCache::Acquire(std::string_view id_view,
+                                                                   const StopCheck& should_stop) {
+  const std::string id(id_view);
+  {
+    std::unique_lock<std::mutex> lock(mutex_);
+    auto it = entries_.find(id);
     if (it == entries_.end()) return NotFound(id);
     if (it->second.target) {
       ++hits_;
@@ -214,20 +277,41 @@ absl::StatusOr<std::shared_ptr<const Target>> TargetCache::Acquire(std::string_v
     }
     if (!store_) return NotFound(id);  // unreachable: without a store evicted means gone
     ++misses_;
+    if (absl::Status s = WaitToLoadLocked(lock, id, should_stop); !s.ok()) return s;
+    // Another request may have rebuilt it (or deleted it) while this one waited.
+    it = entries_.find(id);
+    absl::Status fit = it != entries_.end() && !it->second.target
+                           ? CheckFitLocked(it->second.meta.memory_bytes, id)
+                           : absl::OkStatus();
+    if (it == entries_.end() || it->second.target || !fit.ok()) {
+      FinishLoadingLocked(id);
+      if (it == entries_.end()) return NotFound(id);
+      if (!fit.ok()) return fit;
+      it->second.last_use = ++clock_;
+      return it->second.target;
+    }
   }
   // Reload outside the lock: reading and building take a while and other targets stay usable.
-  // Two concurrent reloads of one target both build; the second one to finish uses the first.
-  auto cloud = store_->Load(std::string(id));
+  absl::StatusOr<std::shared_ptr<const Target>> result = ReloadAndInsert(id, should_stop);
+  std::lock_guard<std::mutex> lock(mutex_);
+  FinishLoadingLocked(id);
+  return result;
+}
+
+absl::StatusOr<std::shared_ptr<const Target>> TargetCache::ReloadAndInsert(
+    const std::string& id, const StopCheck& should_stop) {
+  auto cloud = store_->Load(id);
   if (!cloud.ok()) {
     if (absl::IsNotFound(cloud.status())) return NotFound(id);  // deleted meanwhile
-    return absl::DataLossError(absl::StrCat("stored target '", std::string(id),
-                                            "' cannot be read: ", cloud.status().message()));
+    return absl::DataLossError(
+        absl::StrCat("stored target '", id, "' cannot be read: ", cloud.status().message()));
   }
+  CountBuild();
   auto built = Target::Build(std::move(*cloud), {}, should_stop);
   if (absl::IsCancelled(built.status())) return built.status();
   if (!built.ok()) {
-    return absl::DataLossError(absl::StrCat("stored target '", std::string(id),
-                                            "' cannot be rebuilt: ", built.status().message()));
+    return absl::DataLossError(
+        absl::StrCat("stored target '", id, "' cannot be rebuilt: ", built.status().message()));
   }
   std::lock_guard<std::mutex> lock(mutex_);
   const auto it = entries_.find(id);
@@ -297,6 +381,7 @@ CacheCounters TargetCache::counters() const {
   c.hits = hits_;
   c.misses = misses_;
   c.evictions = evictions_;
+  c.builds = builds_;
   return c;
 }
 

@@ -7,11 +7,13 @@
 // Thread-safe behind one mutex, which is never held while a Target is built or a file written.
 #pragma once
 
+#include <condition_variable>
 #include <cstdint>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -32,6 +34,7 @@ struct CacheCounters {
   std::uint64_t hits = 0;       // lookups that found the target resident
   std::uint64_t misses = 0;     // lookups that had to reload it from the store
   std::uint64_t evictions = 0;  // targets dropped from memory to make room
+  std::uint64_t builds = 0;     // targets built (uploads and reloads)
 };
 
 class TargetCache {
@@ -53,6 +56,14 @@ class TargetCache {
                                                            std::uint64_t min_bytes,
                                                            std::string_view digest) const;
 
+  // Builds the target of an upload and adds it (Insert). The one loader: while a target builds,
+  // its id is loading, and a concurrent Create or Acquire of that id waits for the build instead
+  // of starting another, so each target builds once. RESOURCE_EXHAUSTED before the build when
+  // its estimate (Target::EstimateBytes) cannot fit; INVALID_ARGUMENT "cloud: ..." when the cloud
+  // cannot be built; CANCELLED when `should_stop` said stop.
+  absl::StatusOr<TargetInfo> Create(const std::string& id, PointCloud cloud,
+                                    const std::string& digest, const StopCheck& should_stop = {});
+
   // Adds a freshly built target with content `digest` (persisting it first when there is a
   // store), evicting idle targets when needed. When the id exists meanwhile: the stored target if
   // its content is the same, else ALREADY_EXISTS. RESOURCE_EXHAUSTED when it cannot fit even after
@@ -65,7 +76,9 @@ class TargetCache {
   absl::StatusOr<std::shared_ptr<const Target>> Peek(std::string_view id);
 
   // The target, reloaded from the store and rebuilt when it is not resident (slow: call it on a
-  // worker; the rebuild asks `should_stop`). NOT_FOUND for an unknown id, CANCELLED when stopped.
+  // worker; the rebuild asks `should_stop`), through the one loader (see Create): concurrent
+  // Acquires of a stored target rebuild it once. RESOURCE_EXHAUSTED before the rebuild when its
+  // recorded size cannot fit; NOT_FOUND for an unknown id, CANCELLED when stopped.
   absl::StatusOr<std::shared_ptr<const Target>> Acquire(std::string_view id,
                                                         const StopCheck& should_stop = {});
 
@@ -88,6 +101,19 @@ class TargetCache {
   };
   using Entries = std::map<std::string, Entry, std::less<>>;
 
+  // Marks the id loading, first waiting while another build of it runs (polling
+  // `should_stop`): CANCELLED when stopped meanwhile. `lock` holds mutex_, again on return.
+  absl::Status WaitToLoadLocked(std::unique_lock<std::mutex>& lock, const std::string& id,
+                                const StopCheck& should_stop);
+  void FinishLoadingLocked(const std::string& id);
+  void CountBuild();
+  // Acquire's build: the stored cloud loaded, built and made resident.
+  absl::StatusOr<std::shared_ptr<const Target>> ReloadAndInsert(const std::string& id,
+                                                                const StopCheck& should_stop);
+  static bool IsIdle(const Entry& e) { return e.target && e.target.use_count() == 1; }
+  // Whether `bytes` could fit by evicting idle targets (nothing is evicted).
+  absl::Status CheckFitLocked(std::uint64_t bytes, std::string_view for_id) const;
+
   TargetCache(std::uint64_t budget_bytes, std::unique_ptr<TargetStore> store)
       : budget_bytes_(budget_bytes), store_(std::move(store)) {}
 
@@ -109,8 +135,11 @@ class TargetCache {
   // until released; any reader may notice that (hence mutable).
   mutable std::uint64_t bytes_ = 0;
   mutable std::vector<std::pair<std::weak_ptr<const Target>, std::uint64_t>> retired_;
+  // Ids whose target is being built (Create, Acquire): others wait on `loaded_`.
+  std::set<std::string, std::less<>> loading_;
+  std::condition_variable loaded_;
   std::uint64_t clock_ = 0;
-  std::uint64_t hits_ = 0, misses_ = 0, evictions_ = 0;
+  std::uint64_t hits_ = 0, misses_ = 0, evictions_ = 0, builds_ = 0;
 };
 
 }  // namespace mlsreg::server

@@ -18,17 +18,14 @@ namespace {
 constexpr int kDefaultPageSize = 100;
 constexpr int kMaxPageSize = 1000;
 
-// A lower bound of Target::MemoryBytes for a cloud: points, normals if any, the per-point
-// normal, curvature and validity the build adds, and the depth grid of an organised scan (the
-// kd-tree comes on top). Checked before any data is read, so a client learns that a target can
-// never fit without sending it.
+// Target::EstimateBytes from the header, checked before any data is read, so a client learns
+// that a target can never fit without sending it.
 std::uint64_t MinTargetBytes(const v1::CloudHeader& cloud) {
-  const std::uint64_t per_point = sizeof(Vec3) * (cloud.has_normals() ? 3 : 2) + sizeof(double) + 1;
-  std::uint64_t grid = 0;
+  std::optional<PinholeIntrinsics> intrinsics;
   if (cloud.has_intrinsics()) {
-    grid = GridBytes(PinholeIntrinsics{cloud.intrinsics().width(), cloud.intrinsics().height()});
+    intrinsics = PinholeIntrinsics{cloud.intrinsics().width(), cloud.intrinsics().height()};
   }
-  return cloud.point_count() * per_point + grid;
+  return Target::EstimateBytes(cloud.point_count(), cloud.has_normals(), intrinsics);
 }
 
 // "sha256:" followed by 64 lower-case hex digits, the form CloudDigest writes.
@@ -176,16 +173,8 @@ class CreateTargetCall final : public StreamingCall<CreateTargetReactor> {
                                                      header.content_digest(),
                                                      " but the data received has ", digest));
     }
-    auto existing = cache.Existing(header.target_id(), digest);
-    if (!existing.ok()) return existing.status();
-    if (existing->has_value()) return **existing;
-    auto target = Target::Build(*std::move(cloud), {}, [&] { return cancelled.load(); });
-    if (absl::IsCancelled(target.status())) return target.status();
-    if (!target.ok()) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("cloud: cannot build the target: ", target.status().message()));
-    }
-    return cache.Insert(header.target_id(), *std::move(target), digest);
+    return cache.Create(header.target_id(), *std::move(cloud), digest,
+                        [&] { return cancelled.load(); });
   }
 
   void Built(absl::StatusOr<TargetInfo> info) {
@@ -221,23 +210,21 @@ class TargetServiceImpl final
 
   grpc::Status GetTarget(grpc::ServerContext* ctx, const v1::GetTargetRequest* request,
                          v1::Target* response) override {
-    RpcScope scope(c_, "GetTarget", ctx);
-    return scope.Finish([&]() -> absl::Status {
-      if (absl::Status s = c_.auth.Check(*ctx, Access::kUser); !s.ok()) return s;
+    RpcScope scope(c_, "GetTarget", ctx, kReadRpc);
+    return scope.Run([&]() -> absl::Status {
       if (absl::Status s = ValidateTargetId(request->target_id(), "target_id"); !s.ok()) return s;
       scope.set_target_id(request->target_id());
       auto info = c_.cache.Info(request->target_id());
       if (!info.ok()) return info.status();
       wire::ToProto(*info, response);
       return absl::OkStatus();
-    }());
+    });
   }
 
   grpc::Status ListTargets(grpc::ServerContext* ctx, const v1::ListTargetsRequest* request,
                            v1::ListTargetsResponse* response) override {
-    RpcScope scope(c_, "ListTargets", ctx);
-    return scope.Finish([&]() -> absl::Status {
-      if (absl::Status s = c_.auth.Check(*ctx, Access::kUser); !s.ok()) return s;
+    RpcScope scope(c_, "ListTargets", ctx, kReadRpc);
+    return scope.Run([&]() -> absl::Status {
       if (request->page_size() < 0) {
         return absl::InvalidArgumentError("page_size: must be >= 0 (0: server default)");
       }
@@ -258,18 +245,17 @@ class TargetServiceImpl final
         response->set_next_page_token(response->targets(response->targets_size() - 1).target_id());
       }
       return absl::OkStatus();
-    }());
+    });
   }
 
   grpc::Status DeleteTarget(grpc::ServerContext* ctx, const v1::DeleteTargetRequest* request,
                             v1::DeleteTargetResponse*) override {
-    RpcScope scope(c_, "DeleteTarget", ctx);
-    return scope.Finish([&]() -> absl::Status {
-      if (absl::Status s = c_.auth.Check(*ctx, Access::kAdmin); !s.ok()) return s;
+    RpcScope scope(c_, "DeleteTarget", ctx, kAdminRpc);
+    return scope.Run([&]() -> absl::Status {
       if (absl::Status s = ValidateTargetId(request->target_id(), "target_id"); !s.ok()) return s;
       scope.set_target_id(request->target_id());
       return c_.cache.Erase(request->target_id());
-    }());
+    });
   }
 
  private:

@@ -418,4 +418,56 @@ TEST(TargetCacheTest, StoreKeepsEvictedTargetsAndReloadsThem) {
 }
 
 }  // namespace
+// The one loader: concurrent requests for a stored target, and concurrent uploads of one id,
+// wait for a single build instead of each building.
+TEST(TargetCacheTest, ConcurrentReloadsAndUploadsOfOneTargetBuildItOnce) {
+  const fs::path dir = TempDir("loader");
+  {
+    auto store = TargetStore::Open(dir.string());
+    ASSERT_TRUE(store.ok());
+    auto cache = TargetCache::Open(1u << 30, *std::move(store));
+    ASSERT_TRUE(cache.ok());
+    ASSERT_TRUE(Insert(**cache, "a", SmallTarget(1)).ok());
+  }
+  auto store = TargetStore::Open(dir.string());
+  ASSERT_TRUE(store.ok());
+  auto cache = TargetCache::Open(1u << 30, *std::move(store));  // "a" is STORED now
+  ASSERT_TRUE(cache.ok());
+  TargetCache& targets = **cache;
+  const PointCloud b = testing::SampleBumpySurface(20000, -1, 1, 7);
+  const std::string b_digest = CloudDigest(b);
+  constexpr int kThreads = 6;
+  std::vector<std::shared_ptr<const Target>> acquired(kThreads);
+  std::vector<absl::Status> uploads(kThreads);
+  {
+    std::vector<std::thread> threads;
+    for (int i = 0; i < kThreads; ++i) {
+      threads.emplace_back([&, i] {
+        auto t = targets.Acquire("a");
+        if (t.ok()) acquired[i] = *t;
+        uploads[i] = targets.Create("b", b, b_digest).status();
+      });
+    }
+    for (std::thread& t : threads) t.join();
+  }
+  for (int i = 0; i < kThreads; ++i) {
+    ASSERT_NE(acquired[i], nullptr);
+    EXPECT_EQ(acquired[i], acquired[0]);
+    EXPECT_TRUE(uploads[i].ok()) << uploads[i];  // idempotent: the same content succeeds
+  }
+  EXPECT_EQ(targets.counters().builds, 2u);  // "a" rebuilt once, "b" built once
+  EXPECT_EQ(targets.Info("b")->point_count, 20000u);
+  fs::remove_all(dir);
+}
+
+// The estimate is checked before the build: a cloud that can never fit is refused without one.
+TEST(TargetCacheTest, AnUploadThatCannotFitIsRefusedBeforeItsBuild) {
+  auto cache = TargetCache::Open(100'000, nullptr);
+  ASSERT_TRUE(cache.ok());
+  const PointCloud big = testing::SampleBumpySurface(20000, -1, 1, 3);  // > 1 MB estimated
+  auto created = (*cache)->Create("big", big, CloudDigest(big));
+  EXPECT_EQ(created.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_EQ((*cache)->counters().builds, 0u);
+}
+
 }  // namespace mlsreg::server

@@ -70,6 +70,12 @@ absl::StatusOr<std::shared_ptr<Target>> Target::BuildMutable(PointCloud cloud,
   return target;
 }
 
+std::uint64_t Target::EstimateBytes(std::uint64_t point_count, bool has_normals,
+                                    const std::optional<PinholeIntrinsics>& intrinsics) {
+  const std::uint64_t per_point = sizeof(Vec3) * (has_normals ? 3 : 2) + sizeof(double) + 1;
+  return point_count * per_point + (intrinsics ? GridBytes(*intrinsics) : 0);
+}
+
 std::size_t Target::MemoryBytes() const {
   return cloud_.points.capacity() * sizeof(Vec3) + cloud_.normals.capacity() * sizeof(Vec3) +
          surface_.normals.capacity() * sizeof(Vec3) +

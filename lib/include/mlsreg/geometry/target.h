@@ -47,6 +47,11 @@ class Target {
   double build_seconds() const { return build_seconds_; }
   // Heap bytes held (points, normals, properties, index).
   std::size_t MemoryBytes() const;
+  // A lower bound of MemoryBytes() for a cloud of this shape, known before any build: points,
+  // normals if any, the per-point normal, curvature and validity the build adds, and the depth
+  // grid of an organised scan (the kd-tree comes on top).
+  static std::uint64_t EstimateBytes(std::uint64_t point_count, bool has_normals,
+                                     const std::optional<PinholeIntrinsics>& intrinsics);
 
  private:
   Target() = default;
