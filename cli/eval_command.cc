@@ -80,6 +80,9 @@ const char* kFixedColumns[] = {"manifest",
                                "time_matching_s",
                                "time_optimisation_s",
                                "target_build_s",
+                               "mls_radius_d",
+                               "target_noise_d",
+                               "source_noise_d",
                                "trace_rmse_d",
                                "trace_elapsed_s",
                                "trace_error_d",
@@ -147,6 +150,9 @@ int RunEval(const EvalArgs& args) {
         for (double t : {r.timings.total, r.timings.preprocessing, r.timings.subsampling,
                          r.timings.matching, r.timings.optimisation, o.target_build_seconds}) {
           f.push_back(absl::StrFormat("%.6g", t));
+        }
+        for (double v : {r.mls_radius_d, r.target_noise_d, r.source_noise_d}) {
+          f.push_back(absl::StrFormat("%.4g", v));
         }
         f.push_back(TraceColumn(r, false));
         f.push_back(TraceColumn(r, true));

@@ -30,6 +30,14 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
   std::string out = absl::StrFormat("result: %s after %d iterations in %.3f s (d = %.6g)\n",
                                     TerminationName(result.termination), result.iterations,
                                     result.timings.total, result.sampling_distance);
+  if (result.mls_radius_d > 0.0) {
+    out += result.mls_radius_auto
+               ? absl::StrFormat(
+                     "MLS radius: %.2f d (auto: estimated noise %.2f d on the target, %.2f d on "
+                     "the source)\n",
+                     result.mls_radius_d, result.target_noise_d, result.source_noise_d)
+               : absl::StrFormat("MLS radius: %.2f d (as given)\n", result.mls_radius_d);
+  }
   out += "transform (source -> target, row-major):\n";
   for (int r = 0; r < 4; ++r) {
     out += absl::StrFormat("  % .9f % .9f % .9f % .9f\n", result.transform(r, 0),
@@ -85,6 +93,10 @@ nlohmann::json ResultJson(std::string_view method, const RegistrationResult& res
                       {"iterations", result.iterations},
                       {"sampling_distance", result.sampling_distance},
                       {"num_samples", result.num_samples},
+                      {"mls_radius_d", result.mls_radius_d},
+                      {"mls_radius_auto", result.mls_radius_auto},
+                      {"target_noise_sigma_d", result.target_noise_d},
+                      {"source_noise_sigma_d", result.source_noise_d},
                       {"timings",
                        {{"preprocessing", result.timings.preprocessing},
                         {"subsampling", result.timings.subsampling},

@@ -20,10 +20,11 @@ int Fail(const char* command, const absl::Status& status) {
 
 void PrintTarget(const TargetInfo& t) {
   std::printf(
-      "%-32s %-7s %10llu points  d = %-10.6g %8.1f MiB  built in %.3f s  %llu registrations  "
+      "%-32s %-7s %10llu points  d = %-10.6g noise %.2f d %8.1f MiB  built in %.3f s  "
+      "%llu registrations  "
       "%.23s%s\n",
       t.id.c_str(), std::string(NameOf(TargetStateNames(), t.state)).c_str(),
-      static_cast<unsigned long long>(t.point_count), t.sampling_distance,
+      static_cast<unsigned long long>(t.point_count), t.sampling_distance, t.noise_sigma_d,
       t.memory_bytes / 1048576.0, t.build_seconds, static_cast<unsigned long long>(t.registrations),
       t.digest.c_str(), t.has_intrinsics ? "  organised" : "");
 }

@@ -44,6 +44,7 @@ StoredTargetMeta TargetCache::MetaOf(const Target& target, const std::string& di
   meta.memory_bytes = target.MemoryBytes();
   meta.sampling_distance = target.sampling_distance();
   meta.build_seconds = target.build_seconds();
+  meta.noise_sigma_d = target.noise().sigma_d;
   meta.viewpoint = target.cloud().viewpoint;
   meta.intrinsics = target.cloud().intrinsics;
   return meta;
@@ -57,6 +58,7 @@ TargetInfo TargetCache::InfoLocked(const std::string& id, const Entry& entry) co
   info.memory_bytes = entry.meta.memory_bytes;
   info.sampling_distance = entry.meta.sampling_distance;
   info.build_seconds = entry.meta.build_seconds;
+  info.noise_sigma_d = entry.meta.noise_sigma_d;
   info.registrations = entry.registrations;
   info.has_intrinsics = entry.meta.intrinsics.has_value();
   info.digest = entry.meta.digest;

@@ -48,7 +48,8 @@ Json MetaToJson(const StoredTargetMeta& meta) {
   Json j = {{"point_count", meta.point_count},
             {"memory_bytes", meta.memory_bytes},
             {"sampling_distance", meta.sampling_distance},
-            {"build_seconds", meta.build_seconds}};
+            {"build_seconds", meta.build_seconds},
+            {"noise_sigma_d", meta.noise_sigma_d}};
   if (!meta.digest.empty()) j["content_digest"] = meta.digest;
   if (meta.viewpoint) {
     j["viewpoint"] = {meta.viewpoint->x(), meta.viewpoint->y(), meta.viewpoint->z()};
@@ -73,6 +74,7 @@ std::optional<StoredTargetMeta> MetaFromJson(const Json& j) {
   meta.memory_bytes = j["memory_bytes"].get<std::uint64_t>();
   meta.sampling_distance = j["sampling_distance"].get<double>();
   meta.build_seconds = j["build_seconds"].get<double>();
+  if (number("noise_sigma_d")) meta.noise_sigma_d = j["noise_sigma_d"].get<double>();
   if (j.contains("content_digest")) {
     if (!j["content_digest"].is_string()) return std::nullopt;
     meta.digest = j["content_digest"].get<std::string>();

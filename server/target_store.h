@@ -30,6 +30,7 @@ struct StoredTargetMeta {
   std::uint64_t memory_bytes = 0;  // when it was last resident
   double sampling_distance = 0.0;
   double build_seconds = 0.0;
+  double noise_sigma_d = 0.0;                   // Target::noise(); 0 in files of older versions
   std::optional<Vec3> viewpoint;                // PLY has no place for it
   std::optional<PinholeIntrinsics> intrinsics;  // organised scans (reverse calibration)
   std::string digest;                           // CloudDigest; empty in files of older versions

@@ -48,6 +48,10 @@ absl::StatusOr<std::optional<ParameterValue>> ReadField(const ParameterSpec& spe
 void WriteField(const ParameterSpec& spec, const ParameterValue& value, const FieldDescriptor& f,
                 v1::RegistrationParameters* p) {
   const google::protobuf::Reflection& r = *p->GetReflection();
+  if (std::holds_alternative<std::monostate>(value)) {  // auto: unset
+    r.ClearField(p, &f);
+    return;
+  }
   if (spec.type == ParameterType::kEnum) {
     r.SetEnumValue(p, &f,
                    EnumToWire(*spec.enum_names, static_cast<int>(std::get<std::int64_t>(value))));

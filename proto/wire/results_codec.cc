@@ -60,6 +60,10 @@ void ToProto(const RegistrationResult& r, v1::Result* out) {
   t->set_registration_seconds(r.timings.total);
   out->set_sampling_distance(r.sampling_distance);
   out->set_num_samples(r.num_samples);
+  out->set_mls_radius_d(r.mls_radius_d);
+  out->set_mls_radius_auto(r.mls_radius_auto);
+  out->set_target_noise_sigma_d(r.target_noise_d);
+  out->set_source_noise_sigma_d(r.source_noise_d);
 }
 
 RegistrationResult FromProto(const v1::Result& p) {
@@ -77,6 +81,10 @@ RegistrationResult FromProto(const v1::Result& p) {
   r.timings.total = p.timings().registration_seconds();
   r.sampling_distance = p.sampling_distance();
   r.num_samples = p.num_samples();
+  r.mls_radius_d = p.mls_radius_d();
+  r.mls_radius_auto = p.mls_radius_auto();
+  r.target_noise_d = p.target_noise_sigma_d();
+  r.source_noise_d = p.source_noise_sigma_d();
   return r;
 }
 

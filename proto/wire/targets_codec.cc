@@ -14,6 +14,7 @@ void ToProto(const TargetInfo& info, v1::Target* out) {
   out->set_build_seconds(info.build_seconds);
   out->set_registrations(info.registrations);
   out->set_has_intrinsics(info.has_intrinsics);
+  out->set_noise_sigma_d(info.noise_sigma_d);
   out->set_content_digest(info.digest);
 }
 
@@ -28,6 +29,7 @@ TargetInfo FromProto(const v1::Target& t) {
   info.build_seconds = t.build_seconds();
   info.registrations = t.registrations();
   info.has_intrinsics = t.has_intrinsics();
+  info.noise_sigma_d = t.noise_sigma_d();
   info.digest = t.content_digest();
   return info;
 }

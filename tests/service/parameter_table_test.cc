@@ -111,7 +111,9 @@ TEST(ParameterTableTest, EveryParameterCrossesTheWireAndOutOfRangeValuesNameTheW
     RegistrationOptions options;
     const ParameterValue before = spec.get(options);
     ParameterValue changed = before;
-    if (auto* i = std::get_if<std::int64_t>(&changed)) {
+    if (std::holds_alternative<std::monostate>(changed)) {  // auto: an explicit value
+      changed = (spec.range.min + spec.range.max) / 2;
+    } else if (auto* i = std::get_if<std::int64_t>(&changed)) {
       *i = spec.type == ParameterType::kEnum ? spec.enum_names->values.back().value
                                              : static_cast<std::int64_t>(spec.range.min) + 1;
       if (*i == std::get<std::int64_t>(before))
@@ -150,12 +152,28 @@ TEST(ParameterTableTest, EveryParameterCrossesTheWireAndOutOfRangeValuesNameTheW
   }
 }
 
+// The MLS radius defaults to auto, which travels as an unset field and comes back auto.
+TEST(ParameterTableTest, AnAutomaticRadiusTravelsAsAnUnsetField) {
+  RegistrationOptions options;
+  EXPECT_FALSE(options.mls.radius_d.has_value());
+  v1::Method method;
+  v1::RegistrationParameters p;
+  wire::OptionsToProto(options, &method, &p);
+  EXPECT_FALSE(p.has_mls_radius_d());
+  EXPECT_FALSE(wire::OptionsFromProto(method, p)->mls.radius_d.has_value());
+  const ParameterSpec* radius = FindParameter("mls.radius_d");
+  EXPECT_TRUE(
+      std::holds_alternative<std::monostate>(radius->Parse("auto", "--mls-radius").value()));
+  EXPECT_EQ(radius->Format(radius->get(options)), "auto");
+  EXPECT_FALSE(FindParameter("convergence_d")->Parse("auto", "--convergence").ok());
+}
+
 TEST(ParameterTableTest, CliTextParsesToTheSameValuesAndBadTextNamesTheField) {
   const ParameterSpec* radius = FindParameter("mls.radius_d");
   ASSERT_NE(radius, nullptr);
   EXPECT_EQ(std::get<double>(radius->Parse("8", "--mls-radius").value()), 8.0);
   EXPECT_EQ(radius->Parse("-1", "--mls-radius").status().message(),
-            "--mls-radius must be in (0, 100]");
+            "--mls-radius must be in (0, 100] or auto");
   EXPECT_NE(radius->Parse("eight", "--mls-radius").status().message().find("--mls-radius"),
             std::string::npos);
   const ParameterSpec* far = FindParameter("mls.far_queries");

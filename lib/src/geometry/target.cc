@@ -60,6 +60,9 @@ absl::StatusOr<std::shared_ptr<Target>> Target::BuildMutable(PointCloud cloud,
                                     options.analysis_radius_d * target->sampling_distance_,
                                     target->cloud_.viewpoint, {}, should_stop);
   if (target->surface_.stopped) return cancelled();
+  target->noise_ = EstimateNoise(target->cloud_.points, *target->tree_, target->sampling_distance_,
+                                 {}, {}, should_stop);
+  if (target->noise_.stopped) return cancelled();
   if (target->cloud_.intrinsics) {
     auto grid = DepthGrid::Build(target->cloud_.points, *target->cloud_.intrinsics);
     if (!grid.ok()) return grid.status();

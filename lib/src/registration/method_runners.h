@@ -10,6 +10,7 @@
 #include "loop_support.h"
 #include "mlsreg/core/point_cloud.h"
 #include "mlsreg/correspondences/correspondence.h"
+#include "mlsreg/geometry/kd_tree.h"
 #include "mlsreg/geometry/target.h"
 #include "mlsreg/registration/method.h"
 #include "mlsreg/registration/options.h"
@@ -26,6 +27,7 @@ struct RegistrationProblem {
   const RegistrationCallbacks* callbacks;
   internal::Clock::time_point start;
   int iteration_offset = 0;  // iterations of earlier phases (composite methods)
+  const KdTree* source_tree = nullptr;  // the source's index when Register built one already
 };
 
 namespace internal {

@@ -2,6 +2,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <optional>
 #include <type_traits>
 #include <vector>
 
@@ -21,6 +22,11 @@ constexpr const auto& Member(const RegistrationOptions& o) {
 }
 
 template <typename T>
+struct IsOptional : std::false_type {};
+template <typename T>
+struct IsOptional<std::optional<T>> : std::true_type {};
+
+template <typename T>
 constexpr ParameterType TypeOf() {
   if constexpr (std::is_enum_v<T>) return ParameterType::kEnum;
   if constexpr (std::is_same_v<T, bool>) return ParameterType::kBool;
@@ -33,7 +39,9 @@ template <auto... Path>
 ParameterValue Get(const RegistrationOptions& o) {
   const auto& v = Member<Path...>(o);
   using T = std::decay_t<decltype(v)>;
-  if constexpr (std::is_enum_v<T>) {
+  if constexpr (IsOptional<T>::value) {
+    return v ? ParameterValue(*v) : ParameterValue(std::monostate{});
+  } else if constexpr (std::is_enum_v<T>) {
     return static_cast<std::int64_t>(static_cast<int>(v));
   } else if constexpr (std::is_same_v<T, bool> || std::is_same_v<T, std::uint64_t> ||
                        std::is_same_v<T, double>) {
@@ -48,7 +56,13 @@ template <auto... Path>
 void Set(RegistrationOptions& o, const ParameterValue& value) {
   auto& v = Member<Path...>(o);
   using T = std::decay_t<decltype(v)>;
-  if constexpr (std::is_enum_v<T>) {
+  if constexpr (IsOptional<T>::value) {
+    if (std::holds_alternative<std::monostate>(value)) {
+      v.reset();
+    } else {
+      v = std::get<double>(value);
+    }
+  } else if constexpr (std::is_enum_v<T>) {
     v = static_cast<T>(std::get<std::int64_t>(value));
   } else if constexpr (std::is_same_v<T, bool> || std::is_same_v<T, std::uint64_t> ||
                        std::is_same_v<T, double>) {
@@ -64,8 +78,10 @@ ParameterSpec Row(std::string_view name, std::string_view flag, std::string_view
                   ParameterGroup group, ParameterRange range, std::string_view help,
                   std::string_view note = {}, const EnumNames* enum_names = nullptr) {
   using T = std::decay_t<decltype(Member<Path...>(std::declval<RegistrationOptions&>()))>;
-  return ParameterSpec{name,  flag,       wire_field, help,          group,        TypeOf<T>(),
-                       range, enum_names, note,       &Get<Path...>, &Set<Path...>};
+  constexpr bool optional = IsOptional<T>::value;
+  using Value = std::conditional_t<optional, double, T>;
+  return ParameterSpec{name,  flag,       wire_field, help, group,         TypeOf<Value>(),
+                       range, enum_names, optional,   note, &Get<Path...>, &Set<Path...>};
 }
 
 template <auto... Path>
@@ -191,12 +207,16 @@ std::string ParameterSpec::Rule() const {
     rule = absl::StrCat("must be in ", range.min_open ? "(" : "[", Bound(range.min), ", ",
                         Bound(range.max), "]");
   }
+  if (auto_allowed) rule += " or auto";
   if (!note.empty()) rule += " " + std::string(note);
   return rule;
 }
 
 absl::Status ParameterSpec::Check(const ParameterValue& value, std::string_view field) const {
   const auto bad = [&] { return absl::InvalidArgumentError(std::string(field) + " " + Rule()); };
+  if (std::holds_alternative<std::monostate>(value)) {
+    return auto_allowed ? absl::OkStatus() : bad();
+  }
   switch (type) {
     case ParameterType::kBool:
       return std::holds_alternative<bool>(value) ? absl::OkStatus() : bad();
@@ -233,7 +253,9 @@ std::string ParameterSpec::Format(const ParameterValue& value) const {
   }
   return std::visit(
       [](const auto& v) -> std::string {
-        if constexpr (std::is_same_v<std::decay_t<decltype(v)>, bool>) {
+        if constexpr (std::is_same_v<std::decay_t<decltype(v)>, std::monostate>) {
+          return "auto";
+        } else if constexpr (std::is_same_v<std::decay_t<decltype(v)>, bool>) {
           return v ? "true" : "false";
         } else {
           return absl::StrCat(v);
@@ -250,6 +272,7 @@ absl::StatusOr<ParameterValue> ParameterSpec::Parse(std::string_view text,
   };
   ParameterValue value;
   const char* end = text.data() + text.size();
+  if (auto_allowed && text == "auto") return ParameterValue(std::monostate{});
   switch (type) {
     case ParameterType::kEnum: {
       absl::StatusOr<int> v = enum_names->Parse(text, field);

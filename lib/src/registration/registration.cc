@@ -4,6 +4,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "method_runners.h"
+#include "mlsreg/geometry/noise_estimate.h"
+#include "mlsreg/registration/mls_radius.h"
 
 namespace mlsreg {
 
@@ -41,9 +43,45 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
     return OrganisedTargetRequired(options.method);
   }
 
-  const RegistrationProblem problem{&target, &source, initial, &options, &callbacks, start};
+  // An automatic MLS radius, from the noise of the target (estimated when it was built) and of
+  // the source (estimated here, on the index the method then reuses).
+  RegistrationOptions resolved = options;
+  double noise_seconds = 0.0;
+  std::optional<KdTree> source_tree;
+  double source_noise_d = 0.0;
+  const bool reads_mls = (method.parameter_groups & kMlsParameters) != 0;
+  if (reads_mls && !options.mls.radius_d) {
+    const internal::Clock::time_point phase = internal::Clock::now();
+    source_tree.emplace(source.points);
+    const NoiseEstimate noise = EstimateNoise(
+        source.points, *source_tree, target.sampling_distance(), {}, {}, callbacks.should_stop);
+    if (noise.stopped) {  // cancelled before any iteration
+      RegistrationResult cancelled;
+      cancelled.transform = Orthonormalize(initial).matrix();
+      cancelled.termination = Termination::kCancelled;
+      cancelled.sampling_distance = target.sampling_distance();
+      cancelled.timings.total = internal::Seconds(start);
+      return cancelled;
+    }
+    source_noise_d = noise.sigma_d;
+    resolved.mls.radius_d = AutoMlsRadiusD(std::max(target.noise().sigma_d, source_noise_d));
+    noise_seconds = internal::Seconds(phase);
+  }
+
+  RegistrationProblem problem{&target, &source, initial, &resolved, &callbacks, start};
+  problem.source_tree = source_tree ? &*source_tree : nullptr;
   absl::StatusOr<RegistrationResult> result = method.run(problem);
-  if (result.ok()) result->timings.total = internal::Seconds(start);
+  if (!result.ok()) return result;
+  if (reads_mls) {
+    result->mls_radius_d = *resolved.mls.radius_d;
+    result->mls_radius_auto = !options.mls.radius_d.has_value();
+    if (result->mls_radius_auto) {
+      result->target_noise_d = target.noise().sigma_d;
+      result->source_noise_d = source_noise_d;
+      result->timings.preprocessing += noise_seconds;
+    }
+  }
+  result->timings.total = internal::Seconds(start);
   return result;
 }
 

@@ -13,6 +13,7 @@
 #include "mlsreg/geometry/mls_projector.h"
 #include "mlsreg/geometry/sampling.h"
 #include "mlsreg/geometry/surface_analysis.h"
+#include "mlsreg/registration/mls_radius.h"
 #include "mlsreg/solvers/sparse_icp.h"
 
 namespace mlsreg::internal {
@@ -20,7 +21,8 @@ namespace {
 
 MlsOptions MlsOptionsFor(const Target& target, const RegistrationOptions& options) {
   MlsOptions mls;
-  mls.radius = options.mls.radius_d * target.sampling_distance();
+  // Register resolves an automatic radius before any method runs.
+  mls.radius = options.mls.radius_d.value_or(kMinAutoMlsRadiusD) * target.sampling_distance();
   mls.polynomial_degree = options.mls.polynomial_degree;
   mls.max_iterations = options.mls.max_iterations;
   return mls;

@@ -8,6 +8,7 @@
 #include "mlsreg/core/stop_check.h"
 #include "mlsreg/geometry/depth_grid.h"
 #include "mlsreg/geometry/kd_tree.h"
+#include "mlsreg/geometry/noise_estimate.h"
 #include "mlsreg/geometry/surface_analysis.h"
 
 namespace mlsreg {
@@ -45,6 +46,8 @@ class Target {
   double sampling_distance() const { return sampling_distance_; }
   const TargetOptions& options() const { return options_; }
   double build_seconds() const { return build_seconds_; }
+  // The noise of the cloud, estimated once at build time (EstimateNoise).
+  const NoiseEstimate& noise() const { return noise_; }
   // Heap bytes held (points, normals, properties, index).
   std::size_t MemoryBytes() const;
   // A lower bound of MemoryBytes() for a cloud of this shape, known before any build: points,
@@ -65,6 +68,7 @@ class Target {
   double sampling_distance_ = 0.0;
   TargetOptions options_;
   double build_seconds_ = 0.0;
+  NoiseEstimate noise_;
 };
 
 }  // namespace mlsreg

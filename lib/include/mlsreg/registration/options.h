@@ -4,18 +4,21 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string_view>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "mlsreg/correspondences/correspondence_finders.h"
 #include "mlsreg/core/enum_names.h"
+#include "mlsreg/correspondences/correspondence_finders.h"
 #include "mlsreg/registration/method.h"
 #include "mlsreg/solvers/sparse_icp.h"
 
 namespace mlsreg {
 struct MlsParams {
-  double radius_d = 5.0;      // Wendland support r (paper Table 2: 5d, 8d for high noise)
+  // Wendland support r (paper Table 2: 5 d, 8 d for high noise). Unset: auto, chosen from the
+  // noise estimated on the target and the source (registration/mls_radius.h).
+  std::optional<double> radius_d;
   int polynomial_degree = 3;  // paper Table 2: g = 3
   int max_iterations = 20;    // paper Table 2
   bool warm_start = true;     // start each projection from the previous one's tangent plane

@@ -25,8 +25,9 @@ namespace mlsreg {
 
 enum class ParameterType { kInt, kUint64, kDouble, kBool, kEnum };
 
-// An int or enum (as its int value) is int64, a seed uint64.
-using ParameterValue = std::variant<std::int64_t, std::uint64_t, double, bool>;
+// An int or enum (as its int value) is int64, a seed uint64; std::monostate is "auto" (a length
+// the library chooses from the data, for a row with auto_allowed).
+using ParameterValue = std::variant<std::monostate, std::int64_t, std::uint64_t, double, bool>;
 
 // The closed or half-open interval a numeric value must lie in.
 struct ParameterRange {
@@ -44,15 +45,16 @@ struct ParameterSpec {
   ParameterType type;
   ParameterRange range;         // numeric types
   const EnumNames* enum_names;  // kEnum
+  bool auto_allowed;            // kDouble held as std::optional: unset means auto
   std::string_view note;        // appended to the range rule, e.g. "(0 disables)"
   ParameterValue (*get)(const RegistrationOptions& options);
   void (*set)(RegistrationOptions& options, const ParameterValue& value);
 
-  // "must be in (0, 100]", "must be >= 3", "must be one of all, normal, none".
+  // "must be in (0, 100]", "must be >= 3", "must be one of all, normal, none", "... or auto".
   std::string Rule() const;
   // OK when `value` is of this type and in range; else INVALID_ARGUMENT "<field> <rule>".
   absl::Status Check(const ParameterValue& value, std::string_view field) const;
-  // Text as the CLI takes it ("5", "true", "seed-until-converged").
+  // Text as the CLI takes it ("5", "true", "seed-until-converged", "auto").
   std::string Format(const ParameterValue& value) const;
   absl::StatusOr<ParameterValue> Parse(std::string_view text, std::string_view field) const;
 };

@@ -6,9 +6,9 @@
 #include <string_view>
 #include <vector>
 
+#include "mlsreg/core/enum_names.h"
 #include "mlsreg/core/transform.h"
 #include "mlsreg/correspondences/correspondence_filter.h"
-#include "mlsreg/core/enum_names.h"
 
 namespace mlsreg {
 // Streamed once per ICP iteration.
@@ -49,6 +49,13 @@ struct RegistrationResult {
   PhaseTimings timings;
   double sampling_distance = 0.0;  // the target's d, the unit of every *_d field
   int num_samples = 0;
+  // Methods that read the MLS parameters: the support radius used (units of d), whether it was
+  // chosen automatically, and the noise estimates it was chosen from (units of d; 0 when not
+  // estimated: an explicit radius needs none).
+  double mls_radius_d = 0.0;
+  bool mls_radius_auto = false;
+  double target_noise_d = 0.0;
+  double source_noise_d = 0.0;
 };
 
 struct RegistrationCallbacks {
