@@ -40,7 +40,10 @@ if [ ! -f "$OUT/scans/.done" ]; then
 fi
 
 for sigma in 0 0.8 2; do
-  if [ $sigma = 2 ]; then params=(--mls-radius 8 --fgr-radius 15); else params=(--mls-radius 5 --fgr-radius 10); fi
+  if [ $sigma = 2 ]; then params=(--fgr-radius 15); else params=(--fgr-radius 10); fi
+  if [ -n "${PAPER_RADIUS:-}" ]; then
+    if [ $sigma = 2 ]; then params+=(--mls-radius 8); else params+=(--mls-radius 5); fi
+  fi
   manifests=()
   for m in $TUNING_MESHES; do manifests+=(--pairs "$OUT/scans/$m/sigma$sigma/pairs.csv"); done
   echo "== tuning split, sigma = $sigma d"

@@ -185,6 +185,8 @@ RegistrationOptions EndlessOptions() {
   options.max_iterations = 100'000;
   options.convergence_d = 0.0;  // nothing ever moves less than 0: never converges
   options.coarse_convergence_d = 0.0;
+  options.stall_d = 0.0;
+  options.stall_noise_fraction = 0.0;
   return options;
 }
 

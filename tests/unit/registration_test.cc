@@ -188,6 +188,8 @@ TEST(RegistrationTest, ObserverSeesEveryIterationAndCancelStopsWithinOne) {
   const Matrix4 initial = RandomPerturbation(5.0, 5.0 * d, Vec3::Zero(), 6) * pair.truth;
   RegistrationOptions options;
   options.convergence_d = 0.0;  // never converge: run until cancelled
+  options.stall_d = 0.0;
+  options.stall_noise_fraction = 0.0;
   std::vector<int> seen;
   RegistrationCallbacks callbacks;
   callbacks.on_iteration = [&](const IterationReport& r) {

@@ -10,6 +10,9 @@ namespace {
 // Poses remembered to detect that ICP has stopped, or cycles through a few poses: hard filters
 // can make it alternate between two or more poses forever.
 constexpr std::size_t kCycleMemory = 8;
+// Poses the noise-aware stall rule compares: a pose that settled into the noise's jitter stays
+// there, so fewer than the cycle memory suffice.
+constexpr std::size_t kNoiseStallWindow = 6;
 
 // The largest distance between where `transform` and `pose` put the samples (`moved` =
 // transform * samples), or a value >= limit as soon as one sample moves that far.
@@ -35,12 +38,13 @@ bool ReturnsToRecentPose(std::span<const Vec3> moved, const RigidTransform& tran
   return false;
 }
 
-// True when a full memory of recent poses all lie within `band` of the current one: the pose
+// True when the `window` most recent poses all lie within `band` of the current one: the pose
 // only jitters (hard filters flipping a few correspondences back and forth on noisy data).
 bool Stalled(std::span<const Vec3> moved, const RigidTransform& transform,
-             std::span<const RigidTransform> recent, double band) {
-  if (band <= 0.0 || recent.size() < kCycleMemory) return false;
-  for (const RigidTransform& pose : recent) {
+             std::span<const RigidTransform> recent, double band,
+             std::size_t window = kCycleMemory) {
+  if (band <= 0.0 || recent.size() < window) return false;
+  for (const RigidTransform& pose : recent.first(window)) {
     if (MaxDisplacement(moved, transform, pose, band) >= band) return false;
   }
   return true;
@@ -97,7 +101,9 @@ void RunIcpLoop(IcpStep& step, RigidTransform pose, const LoopSettings& settings
         } else {
           converged =
               ReturnsToRecentPose(step.moved_samples(), pose, recent_poses, threshold) ||
-              (!coarse && Stalled(step.moved_samples(), pose, recent_poses, settings.stall));
+              (!coarse && Stalled(step.moved_samples(), pose, recent_poses, settings.stall)) ||
+              Stalled(step.moved_samples(), pose, recent_poses, settings.noise_stall,
+                      kNoiseStallWindow);
         }
       }
       result.timings.optimisation += Seconds(phase);

@@ -48,6 +48,7 @@ struct LoopSettings {
   double convergence = 0.0;         // absolute lengths
   double coarse_convergence = 0.0;  // while step.coarse()
   double stall = 0.0;               // 0 disables; not in a coarse phase
+  double noise_stall = 0.0;         // 0 disables; both phases
   int iteration_offset = 0;         // reports are numbered after the iterations of earlier phases
 };
 

@@ -26,8 +26,9 @@ struct RegistrationProblem {
   const RegistrationOptions* options;
   const RegistrationCallbacks* callbacks;
   internal::Clock::time_point start;
-  int iteration_offset = 0;  // iterations of earlier phases (composite methods)
+  int iteration_offset = 0;             // iterations of earlier phases (composite methods)
   const KdTree* source_tree = nullptr;  // the source's index when Register built one already
+  double noise_d = 0.0;  // the clouds' estimated noise (the larger), units of d; 0: unknown
 };
 
 namespace internal {

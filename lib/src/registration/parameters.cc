@@ -121,6 +121,15 @@ std::vector<ParameterSpec> MakeTable() {
       Row<&O::min_correspondences>("min_correspondences", "min-correspondences",
                                    "min_correspondences", common, kClosed(3, kMaxNumSamples),
                                    "fewer accepted correspondences end the registration"),
+      Row<&O::sicp_unit_per_residual>(
+          "sicp_unit_per_residual", "sicp-unit-per-residual", "sicp_unit_per_residual", sicp,
+          kClosed(0, 1000),
+          "far from the solution the Sparse ICP unit grows to this many median residuals",
+          "(0 keeps it fixed)"),
+      Row<&O::stall_noise_fraction>(
+          "stall_noise_fraction", "stall-noise", "stall_noise_fraction", sicp, kClosed(0, 10),
+          "also stop when the last 8 poses stay within this fraction of the estimated noise",
+          "(0 disables)"),
       Row<&O::sicp_length_unit_d>("sicp_length_unit_d", "sicp-unit", "sicp_length_unit_d", sicp,
                                   kOpenClosed(0, 1e6), "Sparse ICP length unit (units of d)"),
       Row<&O::sicp, &SparseIcpOptions::p>("sicp.p", "sicp-p", "sicp_p", sicp, kOpenClosed(0, 1),

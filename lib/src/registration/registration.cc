@@ -70,6 +70,7 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
 
   RegistrationProblem problem{&target, &source, initial, &resolved, &callbacks, start};
   problem.source_tree = source_tree ? &*source_tree : nullptr;
+  problem.noise_d = std::max(target.noise().sigma_d, source_noise_d);
   absl::StatusOr<RegistrationResult> result = method.run(problem);
   if (!result.ok()) return result;
   if (reads_mls) {

@@ -1,6 +1,7 @@
 // The Sparse ICP methods: the correspondence policies (CP, MLS, reverse calibration), the Sparse
 // ICP step that filters their partners and runs the ADMM, and the composite methods built from
 // it (ST-SICP, CP-SICP+MLS-SICP).
+#include <algorithm>
 #include <memory>
 
 #include "absl/strings/str_cat.h"
@@ -62,6 +63,9 @@ class SparseIcpStep final : public IcpStep {
         filters_(MakeFilters(options.filter, d, surface_.oriented, finder_->oriented_normals())),
         solver_(SolverOptions(options, d, *finder_)),
         damping_(Damping(options, *finder_)),
+        base_unit_(options.sicp_length_unit_d * d),
+        unit_per_residual_(options.sicp_unit_per_residual),
+        stop_length_(options.convergence_d * d),
         d_(d),
         moved_(samples_.size()),
         moved_normals_(samples_.size()),
@@ -73,6 +77,7 @@ class SparseIcpStep final : public IcpStep {
     // queries are seeded from target samples.
     solver_.set_tangential_weight(finder_->can_refine() ? 0.0 : damping_);
     solver_.Reset(samples_.size());
+    residuals_.reserve(samples_.size());
   }
 
   bool Match(const RigidTransform& pose, IterationReport& report) override {
@@ -96,6 +101,7 @@ class SparseIcpStep final : public IcpStep {
   }
 
   std::optional<RigidTransform> Solve(IterationReport& report) override {
+    AdaptLengthUnit();
     const RigidTransform increment =
         solver_.Step(moved_, partner_points_, partner_normals_, accepted_);
     report.admm_iterations = solver_.last_outer_iterations();
@@ -111,6 +117,21 @@ class SparseIcpStep final : public IcpStep {
   }
 
  private:
+  // Grows the solver's unit to unit_per_residual_ median accepted residuals when that exceeds
+  // the base unit (see RegistrationOptions::sicp_unit_per_residual).
+  void AdaptLengthUnit() {
+    if (unit_per_residual_ <= 0.0) return;
+    residuals_.clear();
+    for (std::size_t i = 0; i < samples_.size(); ++i) {
+      if (accepted_[i]) residuals_.push_back((moved_[i] - partner_points_[i]).norm());
+    }
+    if (residuals_.empty()) return;
+    auto middle = residuals_.begin() + static_cast<std::ptrdiff_t>(residuals_.size() / 2);
+    std::nth_element(residuals_.begin(), middle, residuals_.end());
+    const double unit = std::max(base_unit_, unit_per_residual_ * *middle);
+    solver_.set_length_unit(unit, stop_length_ / unit);
+  }
+
   static SparseIcpOptions SolverOptions(const RegistrationOptions& options, double d,
                                         const CorrespondenceFinder&) {
     SparseIcpOptions sicp = options.sicp;
@@ -130,10 +151,12 @@ class SparseIcpStep final : public IcpStep {
   PhaseFilters filters_;
   SparseIcpSolver solver_;
   double damping_;
+  double base_unit_, unit_per_residual_, stop_length_;
   double d_;
   std::vector<Vec3> moved_, moved_normals_, partner_points_, partner_normals_;
   std::vector<Correspondence> correspondences_;
   std::vector<std::uint8_t> accepted_;
+  std::vector<double> residuals_;  // scratch of AdaptLengthUnit, capacity = samples
 };
 
 // ST-SICP's target: every target sample projected onto the target's own MLS surface (de-noised;
@@ -246,6 +269,7 @@ absl::StatusOr<RegistrationResult> RunSparseIcp(const RegistrationProblem& probl
   settings.convergence = options.convergence_d * d;
   settings.coarse_convergence = options.coarse_convergence_d * d;
   settings.stall = options.stall_d * d;
+  settings.noise_stall = options.stall_noise_fraction * problem.noise_d * d;
   settings.iteration_offset = problem.iteration_offset;
   RunIcpLoop(step, start_pose, settings, *problem.callbacks, problem.start, result);
   result.timings.total = Seconds(problem.start);

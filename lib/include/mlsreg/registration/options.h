@@ -90,7 +90,17 @@ struct RegistrationOptions {
   // ADMM iterations, residuals beyond ~0.32 units start as outliers and beyond ~0.11 units end
   // as outliers: 100 d puts that boundary at ~11 d, several times scanner noise.
   double sicp_length_unit_d = 100.0;
-  SparseIcpOptions sicp;  // length_unit and stop are derived from the two fields above
+  // Far from the solution most residuals exceed that boundary, so only the few small ones pull
+  // and each iteration moves little. The unit therefore grows to this many times the median
+  // accepted residual when that is larger (the boundary then sits at ~3 median residuals),
+  // and is sicp_length_unit_d again near the solution. Chosen on the tuning split
+  // (docs/evaluation.md). 0 keeps the unit fixed (the reference behaviour).
+  double sicp_unit_per_residual = 30.0;
+  // On noisy data the pose settles to a jitter that grows with the noise: also converged when the
+  // last 8 poses lie within this fraction of the estimated noise sigma (target and source, units
+  // of d) of the current one, in both phases. Chosen on the tuning split; 0 disables.
+  double stall_noise_fraction = 0.1;  // with a window of 6 poses (icp_loop.cc)
+  SparseIcpOptions sicp;              // length_unit and stop are derived from the two fields above
   MlsParams mls;
   FilterParams filter;
   GicpParams gicp;

@@ -47,6 +47,11 @@ class SparseIcpSolver {
  public:
   explicit SparseIcpSolver(const SparseIcpOptions& options) : options_(options) {}
   void set_tangential_weight(double weight) { options_.tangential_weight = weight; }
+  // A new length unit (and the stop threshold in the new units) for the following Steps.
+  void set_length_unit(double unit, double stop) {
+    options_.length_unit = unit;
+    options_.stop = stop;
+  }
 
   // Forget the Lagrange multipliers (a new registration with `samples` source samples).
   void Reset(std::size_t samples);
