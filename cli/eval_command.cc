@@ -15,6 +15,7 @@
 #include "cli/commands.h"
 #include "cli/registration_flags.h"
 #include "cli/report.h"
+#include "mlsreg/core/parallel_for.h"
 #include "mlsreg/evaluation/evaluation.h"
 
 namespace mlsreg::cli {
@@ -28,7 +29,8 @@ struct EvalArgs {
   double angle_deg = 0.0;
   double translation_d = 0.0;
   std::uint64_t perturb_seed = 1;
-  int jobs = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  int jobs = HardwareThreads();
+  int threads = 1;
   RegistrationFlags flags;
 };
 
@@ -95,6 +97,7 @@ int RunEval(const EvalArgs& args) {
   options.registration = *registration;
   options.perturbation = {args.angle_deg, args.translation_d, args.perturb_seed};
   options.jobs = args.jobs;
+  options.threads = args.threads;
   options.methods.clear();
   for (absl::string_view name : absl::StrSplit(args.methods, ',', absl::SkipEmpty())) {
     auto method = ParseMethod(std::string_view(name.data(), name.size()));
@@ -222,6 +225,11 @@ CommandRunner AddEvalCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--perturb-seed", args->perturb_seed, "perturbation seed")->capture_default_str();
   cmd->add_option("--jobs", args->jobs, "registrations run in parallel")->capture_default_str();
+  cmd->add_option("--threads", args->threads,
+                  "threads inside each registration (jobs x threads <= cores; results do not "
+                  "depend on it)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 256));
   args->flags.AddTo(*cmd, /*method_flag=*/false);
   return [args] { return RunEval(*args); };
 }

@@ -8,6 +8,7 @@
 #include "cli/connection_flags.h"
 #include "cli/registration_flags.h"
 #include "cli/report.h"
+#include "mlsreg/core/parallel_for.h"
 #include "mlsreg/evaluation/evaluation.h"
 #include "mlsreg/evaluation/metrics.h"
 #include "mlsreg/io/io.h"
@@ -20,6 +21,7 @@ struct RegisterArgs {
   bool quiet = false;
   double perturb_angle = 0.0, perturb_translation = 0.0;
   std::uint64_t perturb_seed = 1;
+  int threads = HardwareThreads();
   RegistrationFlags flags;
   ConnectionFlags connection;
 };
@@ -93,7 +95,9 @@ int RunRegister(const RegisterArgs& args) {
   if (args.connection.has_server()) return RunRemote(args, *options, *source, initial, truth);
   auto target_cloud = ReadPointCloud(args.target);
   if (!target_cloud.ok()) return Fail(target_cloud.status());
-  auto target = Target::Build(*std::move(target_cloud));
+  TargetOptions target_options;
+  target_options.threads = args.threads;
+  auto target = Target::Build(*std::move(target_cloud), target_options);
   if (!target.ok()) return Fail(target.status());
   initial = Perturbed(args, *source, initial, (*target)->sampling_distance());
   if (!args.quiet) {
@@ -104,7 +108,8 @@ int RunRegister(const RegisterArgs& args) {
   }
   RegistrationCallbacks callbacks;
   if (!args.quiet) callbacks.on_iteration = PrintIteration;
-  auto result = Register(**target, *source, initial, *options, callbacks);
+  auto result =
+      Register(**target, *source, initial, *options, callbacks, ExecutionOptions{args.threads});
   if (!result.ok()) return Fail(result.status());
   std::optional<PoseError> error;
   if (truth) {
@@ -133,6 +138,11 @@ CommandRunner AddRegisterCommand(CLI::App& app) {
   cmd->add_option("--perturb-translation", args->perturb_translation,
                   "and translate it by this many d in a seeded random direction");
   cmd->add_option("--perturb-seed", args->perturb_seed, "perturbation seed");
+  cmd->add_option("--threads", args->threads,
+                  "threads of the target build and the registration (default: all cores; the "
+                  "result is the same for any count; with --server the server decides)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 256));
   args->flags.AddTo(*cmd);
   args->connection.AddTo(*cmd, /*server_required=*/false);
   return [args] { return RunRegister(*args); };

@@ -58,6 +58,8 @@ CommandRunner AddServeCommand(CLI::App& app) {
   Bind(*cmd, *args, "--listen", "MLSREG_LISTEN", &C::listen,
        "HOST:PORT to listen on (port 0: any)");
   Bind(*cmd, *args, "--workers", "MLSREG_WORKERS", &C::workers, "registration threads (0: cores)");
+  Bind(*cmd, *args, "--job-threads", "MLSREG_JOB_THREADS", &C::job_threads,
+       "threads inside one registration or target build (workers x job threads <= cores)");
   Bind(*cmd, *args, "--queue-capacity", "MLSREG_QUEUE_CAPACITY", &C::queue_capacity,
        "jobs that may wait for a worker (0: 4 x workers); beyond: RESOURCE_EXHAUSTED");
   Bind(*cmd, *args, "--cache-budget-bytes", "MLSREG_CACHE_BUDGET_BYTES", &C::cache_budget_bytes,

@@ -96,7 +96,8 @@ void RegistrationJob::Run() {
   RegistrationCallbacks callbacks;
   callbacks.on_iteration = [this](const IterationReport& report) { Publish(report); };
   callbacks.should_stop = [this] { return ShouldStop(); };
-  auto result = mlsreg::Register(*target, input_.source, input_.initial, input_.options, callbacks);
+  auto result = mlsreg::Register(*target, input_.source, input_.initial, input_.options, callbacks,
+                                 ExecutionOptions{input_.threads});
   if (!result.ok()) {
     Finish(result.status());
     return;

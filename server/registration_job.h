@@ -32,6 +32,7 @@ struct RegistrationInput {
   Matrix4 initial = Matrix4::Identity();
   std::optional<Matrix4> ground_truth;
   RegistrationOptions options;
+  int threads = 1;  // ServerConfig::job_threads
   std::chrono::system_clock::time_point deadline = std::chrono::system_clock::time_point::max();
 };
 

@@ -144,6 +144,7 @@ class RegisterCall final : public StreamingCall<RegisterReactor> {
     auto options = wire::OptionsFromProto(header.method(), header.parameters());
     if (!options.ok()) return options.status();
     input_.options = *options;
+    input_.threads = c_.config.job_threads;
     if (header.has_initial_transform()) {
       auto m = wire::FromProto(header.initial_transform(), "header.initial_transform");
       if (!m.ok()) return m.status();

@@ -102,7 +102,7 @@ absl::StatusOr<std::unique_ptr<MlsregServer>> MlsregServer::Start(const ServerCo
     if (!opened.ok()) return opened.status();
     store = *std::move(opened);
   }
-  auto cache = TargetCache::Open(c.cache_budget_bytes, std::move(store));
+  auto cache = TargetCache::Open(c.cache_budget_bytes, std::move(store), c.job_threads);
   if (!cache.ok()) return cache.status();
   server->cache_ = *std::move(cache);
   server->jobs_ = std::make_unique<JobPool>(c.workers, c.queue_capacity);

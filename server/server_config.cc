@@ -61,6 +61,7 @@ const std::map<std::string, FieldSetter>& Setters() {
       {"listen", Set("listen", &ServerConfig::listen)},
       {"workers", Set("workers", &ServerConfig::workers)},
       {"queue_capacity", Set("queue_capacity", &ServerConfig::queue_capacity)},
+      {"job_threads", Set("job_threads", &ServerConfig::job_threads)},
       {"cache_budget_bytes", Set("cache_budget_bytes", &ServerConfig::cache_budget_bytes)},
       {"data_dir", Set("data_dir", &ServerConfig::data_dir)},
       {"max_points", Set("max_points", &ServerConfig::max_points)},
@@ -168,6 +169,7 @@ absl::Status Validate(const ServerConfig& c) {
   };
   if (c.listen.empty()) return bad("listen", "must be host:port");
   if (c.workers < 0 || c.workers > 1024) return bad("workers", "must be in [0, 1024]");
+  if (c.job_threads < 1 || c.job_threads > 256) return bad("job_threads", "must be in [1, 256]");
   if (c.queue_capacity < 0 || c.queue_capacity > 1'000'000) {
     return bad("queue_capacity", "must be in [0, 1000000]");
   }

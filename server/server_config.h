@@ -15,6 +15,8 @@ struct ServerConfig {
   std::string listen = "127.0.0.1:50051";
   int workers = 0;         // registration/build threads; 0 = hardware cores
   int queue_capacity = 0;  // jobs waiting for a worker; 0 = 4 * workers
+  // Threads inside one registration or target build (keep workers x job_threads <= cores).
+  int job_threads = 1;
   std::uint64_t cache_budget_bytes = std::uint64_t{2} << 30;  // resident targets
   // When set, targets are persisted under data_dir/targets and survive eviction and restarts.
   std::string data_dir;

@@ -17,8 +17,10 @@ absl::Status NotFound(std::string_view id) {
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<TargetCache>> TargetCache::Open(std::uint64_t budget_bytes,
-                                                               std::unique_ptr<TargetStore> store) {
-  std::unique_ptr<TargetCache> cache(new TargetCache(budget_bytes, std::move(store)));
+                                                               std::unique_ptr<TargetStore> store,
+                                                               int build_threads) {
+  std::unique_ptr<TargetCache> cache(
+      new TargetCache(budget_bytes, std::move(store), std::max(1, build_threads)));
   if (cache->store_) {
     auto stored = cache->store_->List();
     if (!stored.ok()) return stored.status();
@@ -252,7 +254,7 @@ absl::StatusOr<TargetInfo> TargetCache::Create(const std::string& id, PointCloud
   }
   absl::StatusOr<TargetInfo> result = [&]() -> absl::StatusOr<TargetInfo> {
     CountBuild();
-    auto target = Target::Build(std::move(cloud), {}, should_stop);
+    auto target = Target::Build(std::move(cloud), BuildOptions(), should_stop);
     if (absl::IsCancelled(target.status())) return target.status();
     if (!target.ok()) {
       return absl::InvalidArgumentError(
@@ -309,7 +311,7 @@ absl::StatusOr<std::shared_ptr<const Target>> TargetCache::ReloadAndInsert(
         absl::StrCat("stored target '", id, "' cannot be read: ", cloud.status().message()));
   }
   CountBuild();
-  auto built = Target::Build(std::move(*cloud), {}, should_stop);
+  auto built = Target::Build(std::move(*cloud), BuildOptions(), should_stop);
   if (absl::IsCancelled(built.status())) return built.status();
   if (!built.ok()) {
     return absl::DataLossError(

@@ -40,8 +40,10 @@ struct CacheCounters {
 class TargetCache {
  public:
   // `store` may be null (memory only). Indexes the targets already in the store as STORED.
+  // `build_threads`: TargetOptions::threads of every build.
   static absl::StatusOr<std::unique_ptr<TargetCache>> Open(std::uint64_t budget_bytes,
-                                                           std::unique_ptr<TargetStore> store);
+                                                           std::unique_ptr<TargetStore> store,
+                                                           int build_threads = 1);
 
   // What an upload of `id` with content `digest` meets: the existing target when it holds the
   // same content (the upload is done: creation is idempotent), nullopt when the id is free,
@@ -114,8 +116,8 @@ class TargetCache {
   // Whether `bytes` could fit by evicting idle targets (nothing is evicted).
   absl::Status CheckFitLocked(std::uint64_t bytes, std::string_view for_id) const;
 
-  TargetCache(std::uint64_t budget_bytes, std::unique_ptr<TargetStore> store)
-      : budget_bytes_(budget_bytes), store_(std::move(store)) {}
+  TargetCache(std::uint64_t budget_bytes, std::unique_ptr<TargetStore> store, int build_threads)
+      : budget_bytes_(budget_bytes), store_(std::move(store)), build_threads_(build_threads) {}
 
   // Evicts least recently used idle targets until `bytes` more fit; evicts nothing and returns
   // RESOURCE_EXHAUSTED when that is impossible. Requires mutex_.
@@ -129,6 +131,12 @@ class TargetCache {
 
   const std::uint64_t budget_bytes_;
   const std::unique_ptr<TargetStore> store_;
+  const int build_threads_;
+  TargetOptions BuildOptions() const {
+    TargetOptions options;
+    options.threads = build_threads_;
+    return options;
+  }
   mutable std::mutex mutex_;
   Entries entries_;
   // Resident + retired bytes. Deleted targets that registrations held are counted in bytes_

@@ -6,6 +6,7 @@
 #include <cctype>
 
 #include "mlsreg/evaluation/metrics.h"
+#include "mlsreg/registration/mls_radius.h"
 #include "support/synthetic.h"
 
 namespace mlsreg {
@@ -267,6 +268,67 @@ TEST(TargetTest, RejectsTooSmallAndNonFiniteClouds) {
   for (Vec3& p : same.points) p = Vec3(1, 2, 3);
   auto status = Target::Build(same).status();
   EXPECT_NE(status.message().find("sampling distance"), std::string::npos);
+}
+
+// The automatic radius follows the noise: the source carries 2 d of noise (along z, close to the
+// normal of the gentle test surface), so r = 4 sigma = 8 d; noise-free it is the 5 d floor; an
+// explicit radius is used as given, with no estimate.
+TEST(AutoRadiusTest, ARegistrationAtTwoDOfNoisePicksEightD) {
+  const SyntheticPair noisy = MakePair(2.0);
+  RegistrationOptions options;  // mls-sicp, radius auto
+  auto result = Register(*noisy.target, noisy.source, noisy.truth, options);
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_TRUE(result->mls_radius_auto);
+  EXPECT_NEAR(result->source_noise_d, 2.0, 0.3);
+  EXPECT_LT(result->target_noise_d, 0.2);
+  EXPECT_NEAR(result->mls_radius_d, 8.0, 1.2);
+
+  const SyntheticPair clean = MakePair(0.0);
+  auto floor = Register(*clean.target, clean.source, clean.truth, options);
+  ASSERT_TRUE(floor.ok());
+  EXPECT_EQ(floor->mls_radius_d, kMinAutoMlsRadiusD);
+
+  options.mls.radius_d = 6.5;
+  auto given = Register(*noisy.target, noisy.source, noisy.truth, options);
+  ASSERT_TRUE(given.ok());
+  EXPECT_FALSE(given->mls_radius_auto);
+  EXPECT_EQ(given->mls_radius_d, 6.5);
+  EXPECT_EQ(given->source_noise_d, 0.0);  // not estimated
+}
+
+// Threads split the work, never change it: every parallel method gives bit-identical
+// transforms and traces for 1, 2 and 3 threads, and a target builds the same.
+TEST(ThreadsTest, ResultsAreBitIdenticalForAnyThreadCount) {
+  const SyntheticPair pair = MakePair(0.8);
+  const double d = pair.target->sampling_distance();
+  const Matrix4 initial = RandomPerturbation(8.0, 5.0 * d, Vec3::Zero(), 4) * pair.truth;
+  for (Method method :
+       {Method::kMlsSicp, Method::kCpSicp, Method::kStSicp, Method::kCpThenMlsSicp}) {
+    SCOPED_TRACE(std::string(MethodName(method)));
+    RegistrationOptions options;
+    options.method = method;
+    options.max_iterations = 15;
+    auto one = Register(*pair.target, pair.source, initial, options, {}, ExecutionOptions{1});
+    ASSERT_TRUE(one.ok());
+    for (int threads : {2, 3}) {
+      auto many =
+          Register(*pair.target, pair.source, initial, options, {}, ExecutionOptions{threads});
+      ASSERT_TRUE(many.ok());
+      EXPECT_EQ(many->transform, one->transform) << threads << " threads";
+      ASSERT_EQ(many->trace.size(), one->trace.size());
+      for (std::size_t i = 0; i < one->trace.size(); ++i) {
+        EXPECT_EQ(many->trace[i].rmse, one->trace[i].rmse);
+        EXPECT_EQ(many->trace[i].counts.matched, one->trace[i].counts.matched);
+      }
+    }
+  }
+  TargetOptions three;
+  three.threads = 3;
+  auto a = Target::Build(pair.target->cloud());
+  auto b = Target::Build(pair.target->cloud(), three);
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_EQ((*a)->surface().normals, (*b)->surface().normals);
+  EXPECT_EQ((*a)->surface().curvature, (*b)->surface().curvature);
 }
 
 }  // namespace

@@ -2,18 +2,25 @@
 
 #include <cmath>
 
+#include "mlsreg/core/parallel_for.h"
+
 namespace mlsreg {
 
 void ClosestPointFinder::Find(std::span<const Vec3> queries, std::span<Correspondence> out) {
   const SurfaceProperties& surface = target_.surface();
-  for (std::size_t i = 0; i < queries.size(); ++i) {
-    const Neighbor nn = target_.tree().Nearest(queries[i]);
-    Correspondence& c = out[i];
-    c.point = target_.points()[nn.index];
-    c.normal = surface.normals[nn.index];
-    c.curvature = surface.curvature[nn.index];
-    c.valid = surface.valid[nn.index] != 0;
-  }
+  ParallelFor(
+      queries.size(), threads_,
+      [&](std::size_t begin, std::size_t end, int) {
+        for (std::size_t i = begin; i < end; ++i) {
+          const Neighbor nn = target_.tree().Nearest(queries[i]);
+          Correspondence& c = out[i];
+          c.point = target_.points()[nn.index];
+          c.normal = surface.normals[nn.index];
+          c.curvature = surface.curvature[nn.index];
+          c.valid = surface.valid[nn.index] != 0;
+        }
+      },
+      512);
 }
 
 MlsCorrespondenceFinder::MlsCorrespondenceFinder(const Target& target, const MlsOptions& options,
@@ -38,11 +45,26 @@ void MlsCorrespondenceFinder::Find(std::span<const Vec3> queries, std::span<Corr
     status_.assign(queries.size(), ProjectionStatus::kTooFewNeighbors);
   }
   last_iterations_ = 0;
+  if (workspaces_.size() < static_cast<std::size_t>(threads_)) workspaces_.resize(threads_);
+  thread_iterations_.assign(threads_, 0);  // no allocation once sized
+  ParallelFor(
+      queries.size(), threads_,
+      [&](std::size_t begin, std::size_t end, int worker) {
+        FindRange(queries, out, begin, end, workspaces_[worker], thread_iterations_[worker]);
+      },
+      16);
+  for (long n : thread_iterations_) last_iterations_ += n;
+}
+
+bool MlsCorrespondenceFinder::FindRange(std::span<const Vec3> queries,
+                                        std::span<Correspondence> out, std::size_t begin,
+                                        std::size_t end, MlsProjector::Workspace& workspace,
+                                        long& iterations) {
   // A projection can take thousands of neighbour visits in dense clusters: ask often.
   constexpr std::uint32_t kStopInterval = 64;
   StopPoller stop(should_stop_, kStopInterval);
-  for (std::size_t i = 0; i < queries.size(); ++i) {
-    if (stop.Poll()) return;
+  for (std::size_t i = begin; i < end; ++i) {
+    if (stop.Poll()) return false;
     const Vec3& q = queries[i];
     MlsProjection& previous = previous_[i];
     MlsProjection projection;
@@ -52,11 +74,11 @@ void MlsCorrespondenceFinder::Find(std::span<const Vec3> queries, std::span<Corr
         !previous.seeded_from_nearest_sample &&
         (q - previous.point).squaredNorm() < radius_ * radius_) {
       const Vec3 start = q - (q - previous.point).dot(previous.normal) * previous.normal;
-      projection = projector_.ProjectFrom(start, workspace_);
+      projection = projector_.ProjectFrom(start, workspace);
     } else {
-      projection = projector_.Project(q, workspace_);
+      projection = projector_.Project(q, workspace);
     }
-    last_iterations_ += projection.iterations;
+    iterations += projection.iterations;
     Correspondence& c = out[i];
     c.point = projection.point;
     c.normal = projection.normal;
@@ -65,6 +87,7 @@ void MlsCorrespondenceFinder::Find(std::span<const Vec3> queries, std::span<Corr
     status_[i] = projection.status;
     previous = projection;
   }
+  return true;
 }
 
 void ReverseCalibrationFinder::Find(std::span<const Vec3> queries, std::span<Correspondence> out) {

@@ -94,7 +94,8 @@ ProblemOutcome RunOne(const RegistrationProblem& problem, std::size_t index, Met
   out.initial_error = EvaluatePose((*source)->points, out.initial, truth, d);
   RegistrationOptions registration = options.registration;
   registration.method = method;
-  auto result = Register(**target, **source, out.initial, registration);
+  auto result = Register(**target, **source, out.initial, registration, {},
+                         ExecutionOptions{options.threads});
   if (!result.ok()) {
     out.status = result.status();
     return out;

@@ -1,7 +1,9 @@
 #include "mlsreg/geometry/surface_analysis.h"
 
+#include <atomic>
 #include <cmath>
 
+#include "mlsreg/core/parallel_for.h"
 #include "mlsreg/geometry/weighted_covariance.h"
 #include "mlsreg/geometry/wendland.h"
 
@@ -10,7 +12,7 @@ namespace mlsreg {
 SurfaceProperties AnalyzeSurface(const std::vector<Vec3>& points, const KdTree& tree, double radius,
                                  const std::optional<Vec3>& viewpoint,
                                  std::span<const std::uint32_t> indices,
-                                 const StopCheck& should_stop) {
+                                 const StopCheck& should_stop, int threads) {
   const std::size_t n = indices.empty() ? points.size() : indices.size();
   SurfaceProperties out;
   out.normals.assign(n, Vec3::Zero());
@@ -18,27 +20,31 @@ SurfaceProperties AnalyzeSurface(const std::vector<Vec3>& points, const KdTree& 
   out.valid.assign(n, 0);
   out.oriented = viewpoint.has_value();
 
-  RadiusNeighbors neighbors;
-  StopPoller stop(should_stop);
-  for (std::size_t i = 0; i < n; ++i) {
-    if (stop.Poll()) {
-      out.stopped = true;
-      return out;
+  std::atomic<bool> stopped{false};
+  ParallelFor(n, threads, [&](std::size_t begin, std::size_t end, int) {
+    RadiusNeighbors neighbors;
+    StopPoller stop(should_stop);
+    for (std::size_t i = begin; i < end; ++i) {
+      if (stopped.load(std::memory_order_relaxed) || stop.Poll()) {
+        stopped = true;
+        return;
+      }
+      const Vec3& p = points[indices.empty() ? i : indices[i]];
+      tree.Radius(p, radius, neighbors);
+      WeightedCovariance fit(p);
+      for (const auto& [index, d2] : neighbors) {
+        fit.Add(points[index], WendlandWeight(std::sqrt(d2), radius));
+      }
+      LocalFrame frame;
+      if (!fit.Finalize(frame)) continue;
+      Vec3 normal = frame.normal;
+      if (viewpoint && normal.dot(*viewpoint - p) < 0.0) normal = -normal;
+      out.normals[i] = normal;
+      out.curvature[i] = frame.surface_variation;
+      out.valid[i] = 1;
     }
-    const Vec3& p = points[indices.empty() ? i : indices[i]];
-    tree.Radius(p, radius, neighbors);
-    WeightedCovariance fit(p);
-    for (const auto& [index, d2] : neighbors) {
-      fit.Add(points[index], WendlandWeight(std::sqrt(d2), radius));
-    }
-    LocalFrame frame;
-    if (!fit.Finalize(frame)) continue;
-    Vec3 normal = frame.normal;
-    if (viewpoint && normal.dot(*viewpoint - p) < 0.0) normal = -normal;
-    out.normals[i] = normal;
-    out.curvature[i] = frame.surface_variation;
-    out.valid[i] = 1;
-  }
+  });
+  out.stopped = stopped.load();
   return out;
 }
 

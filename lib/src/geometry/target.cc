@@ -58,7 +58,7 @@ absl::StatusOr<std::shared_ptr<Target>> Target::BuildMutable(PointCloud cloud,
   if (should_stop && should_stop()) return cancelled();
   target->surface_ = AnalyzeSurface(target->cloud_.points, *target->tree_,
                                     options.analysis_radius_d * target->sampling_distance_,
-                                    target->cloud_.viewpoint, {}, should_stop);
+                                    target->cloud_.viewpoint, {}, should_stop, options.threads);
   if (target->surface_.stopped) return cancelled();
   target->noise_ = EstimateNoise(target->cloud_.points, *target->tree_, target->sampling_distance_,
                                  {}, {}, should_stop);

@@ -28,7 +28,8 @@ std::string_view TerminationName(Termination termination) {
 absl::StatusOr<RegistrationResult> Register(const Target& target, const PointCloud& source,
                                             const Matrix4& initial,
                                             const RegistrationOptions& options,
-                                            const RegistrationCallbacks& callbacks) {
+                                            const RegistrationCallbacks& callbacks,
+                                            const ExecutionOptions& execution) {
   const internal::Clock::time_point start = internal::Clock::now();
   if (absl::Status s = ValidateOptions(options); !s.ok()) return s;
   if (absl::Status s = ValidatePointCloud(source, 3); !s.ok()) {
@@ -71,6 +72,7 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
   RegistrationProblem problem{&target, &source, initial, &resolved, &callbacks, start};
   problem.source_tree = source_tree ? &*source_tree : nullptr;
   problem.noise_d = std::max(target.noise().sigma_d, source_noise_d);
+  problem.threads = std::max(1, execution.threads);
   absl::StatusOr<RegistrationResult> result = method.run(problem);
   if (!result.ok()) return result;
   if (reads_mls) {

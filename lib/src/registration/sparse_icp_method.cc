@@ -2,11 +2,13 @@
 // ICP step that filters their partners and runs the ADMM, and the composite methods built from
 // it (ST-SICP, CP-SICP+MLS-SICP).
 #include <algorithm>
+#include <atomic>
 #include <memory>
 
 #include "absl/strings/str_cat.h"
 #include "icp_loop.h"
 #include "method_runners.h"
+#include "mlsreg/core/parallel_for.h"
 #include "mlsreg/core/stop_check.h"
 #include "mlsreg/correspondences/correspondence_filter.h"
 #include "mlsreg/correspondences/correspondence_finders.h"
@@ -166,17 +168,25 @@ class SparseIcpStep final : public IcpStep {
 // when it said stop.
 absl::StatusOr<std::shared_ptr<const Target>> SmoothedTarget(const Target& target,
                                                              const RegistrationOptions& options,
-                                                             const StopCheck& should_stop) {
+                                                             const StopCheck& should_stop,
+                                                             int threads) {
   const MlsProjector projector(target.points(), target.tree(), MlsOptionsFor(target, options));
-  MlsProjector::Workspace workspace;
-  std::vector<Vec3> smoothed;
-  smoothed.reserve(target.points().size());
-  StopPoller stop(should_stop, 64);
-  for (const Vec3& p : target.points()) {
-    if (stop.Poll()) return std::shared_ptr<const Target>();
-    const MlsProjection projection = projector.Project(p, workspace);
-    smoothed.push_back(projection.status == ProjectionStatus::kOk ? projection.point : p);
-  }
+  const std::vector<Vec3>& points = target.points();
+  std::vector<Vec3> smoothed(points.size());
+  std::atomic<bool> stopped{false};
+  ParallelFor(points.size(), threads, [&](std::size_t begin, std::size_t end, int) {
+    MlsProjector::Workspace workspace;
+    StopPoller stop(should_stop, 64);
+    for (std::size_t i = begin; i < end; ++i) {
+      if (stopped.load(std::memory_order_relaxed) || stop.Poll()) {
+        stopped = true;
+        return;
+      }
+      const MlsProjection projection = projector.Project(points[i], workspace);
+      smoothed[i] = projection.status == ProjectionStatus::kOk ? projection.point : points[i];
+    }
+  });
+  if (stopped) return std::shared_ptr<const Target>();
   return target.WithMovedPoints(std::move(smoothed));
 }
 
@@ -245,13 +255,14 @@ absl::StatusOr<RegistrationResult> RunSparseIcp(const RegistrationProblem& probl
   std::unique_ptr<CorrespondenceFinder> finder =
       SpecOf(options.method).make_finder(target, options);
   finder->set_should_stop(problem.callbacks->should_stop);
+  finder->set_threads(problem.threads);
   const double analysis_radius = finder->analysis_radius() > 0.0
                                      ? finder->analysis_radius()
                                      : target.options().analysis_radius_d * d;
   const KdTree source_tree(problem.source->points);
-  SurfaceProperties surface =
-      AnalyzeSurface(problem.source->points, source_tree, analysis_radius,
-                     problem.source->viewpoint, sampled.indices, problem.callbacks->should_stop);
+  SurfaceProperties surface = AnalyzeSurface(problem.source->points, source_tree, analysis_radius,
+                                             problem.source->viewpoint, sampled.indices,
+                                             problem.callbacks->should_stop, problem.threads);
   result.timings.preprocessing = Seconds(phase);
   const RigidTransform start_pose(Orthonormalize(problem.initial));
   if (surface.stopped) {
@@ -278,7 +289,8 @@ absl::StatusOr<RegistrationResult> RunSparseIcp(const RegistrationProblem& probl
 
 absl::StatusOr<RegistrationResult> RunSmoothedTargetSicp(const RegistrationProblem& problem) {
   const Clock::time_point phase = Clock::now();
-  auto smoothed = SmoothedTarget(*problem.target, *problem.options, problem.callbacks->should_stop);
+  auto smoothed = SmoothedTarget(*problem.target, *problem.options, problem.callbacks->should_stop,
+                                 problem.threads);
   if (!smoothed.ok()) return smoothed.status();
   if (*smoothed == nullptr) {  // cancelled while smoothing: no iteration ran
     RegistrationResult result;

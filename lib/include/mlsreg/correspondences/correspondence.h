@@ -1,6 +1,7 @@
 // Correspondence and CorrespondenceFinder: how a source point finds its partner on the target.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <string_view>
@@ -44,9 +45,12 @@ class CorrespondenceFinder {
   // Finders whose queries are expensive (MLS) ask this while they search and return early, with
   // the rest of `out` unset, once it says stop; the caller then asks it too and stops.
   void set_should_stop(StopCheck check) { should_stop_ = std::move(check); }
+  // Threads that split each Find's queries; partners do not depend on the count.
+  void set_threads(int threads) { threads_ = std::max(1, threads); }
 
  protected:
   StopCheck should_stop_;
+  int threads_ = 1;
 };
 
 }  // namespace mlsreg

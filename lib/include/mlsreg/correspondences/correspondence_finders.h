@@ -48,12 +48,17 @@ class MlsCorrespondenceFinder final : public CorrespondenceFinder {
   long last_iterations() const { return last_iterations_; }
 
  private:
+  // Queries [begin, end) of one Find, with that thread's workspace; false when stopped.
+  bool FindRange(std::span<const Vec3> queries, std::span<Correspondence> out, std::size_t begin,
+                 std::size_t end, MlsProjector::Workspace& workspace, long& iterations);
+
   MlsProjector projector_;
   bool warm_start_;
   FarQueryPolicy far_queries_;
   bool oriented_;
   double radius_;
-  MlsProjector::Workspace workspace_;
+  std::vector<MlsProjector::Workspace> workspaces_;  // one per thread
+  std::vector<long> thread_iterations_;
   std::vector<MlsProjection> previous_;
   std::vector<ProjectionStatus> status_;
   long last_iterations_ = 0;

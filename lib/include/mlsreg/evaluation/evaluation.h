@@ -37,7 +37,8 @@ struct EvaluationOptions {
   std::vector<Method> methods = {Method::kMlsSicp};
   RegistrationOptions registration;  // method is overwritten per run
   PerturbationProtocol perturbation;
-  int jobs = 1;  // registrations run in parallel (each is single-threaded)
+  int jobs = 1;     // registrations run in parallel
+  int threads = 1;  // threads inside each registration and target build (ExecutionOptions)
 };
 
 struct ProblemOutcome {

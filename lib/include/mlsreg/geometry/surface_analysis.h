@@ -29,10 +29,11 @@ struct SurfaceProperties {
 // Analyses `points[i]` for every i in `indices` (or every point when `indices` is empty) using the
 // neighbours within `radius` (at most kMaxRadiusNeighbors, the nearest), weighted by the
 // Wendland function. Normals point toward `viewpoint` when it is given. Allocation happens once
-// per call, not per point. `should_stop` is asked every few hundred points.
+// per call and thread, not per point. `should_stop` is asked every few hundred points (from
+// every thread). `threads` split the points (ParallelFor); the result does not depend on them.
 SurfaceProperties AnalyzeSurface(const std::vector<Vec3>& points, const KdTree& tree, double radius,
                                  const std::optional<Vec3>& viewpoint,
                                  std::span<const std::uint32_t> indices = {},
-                                 const StopCheck& should_stop = {});
+                                 const StopCheck& should_stop = {}, int threads = 1);
 
 }  // namespace mlsreg

@@ -19,6 +19,8 @@ struct TargetOptions {
   double analysis_radius_d = 5.0;
   // Minimum number of points accepted.
   std::size_t min_points = 10;
+  // Threads of the build's per-point analysis (the target is the same for any count).
+  int threads = 1;
 };
 
 // Cloud + kd-tree + sampling distance + per-point surface properties. Immutable once built and

@@ -23,7 +23,7 @@ struct TargetInfo {
   double sampling_distance = 0.0;  // d
   double build_seconds = 0.0;      // kd-tree, normals, curvature (and depth grid)
   std::uint64_t registrations = 0;
-  double noise_sigma_d = 0.0;  // the cloud's estimated noise (units of d, EstimateNoise)
+  double noise_sigma_d = 0.0;   // the cloud's estimated noise (units of d, EstimateNoise)
   bool has_intrinsics = false;  // organised scan: reverse calibration can use it
   std::string digest;           // "sha256:..." of its content (mlsreg/core/cloud_digest.h)
 };

@@ -11,12 +11,20 @@
 
 namespace mlsreg {
 
+// How a registration runs, as opposed to what it computes: the result is the same for any value.
+struct ExecutionOptions {
+  // Threads that split the correspondence search, the source analysis and ST-SICP's smoothing
+  // (G-ICP and FGR run on one). should_stop is then called from several threads.
+  int threads = 1;
+};
+
 // Registers `source` to `target` starting from `initial` (source -> target, rigid). Invalid input
 // (bad cloud, non-rigid initial transform, options out of range) gives InvalidArgument naming the
 // field; a registration that runs always returns a result, whatever its termination.
 absl::StatusOr<RegistrationResult> Register(const Target& target, const PointCloud& source,
                                             const Matrix4& initial,
                                             const RegistrationOptions& options,
-                                            const RegistrationCallbacks& callbacks = {});
+                                            const RegistrationCallbacks& callbacks = {},
+                                            const ExecutionOptions& execution = {});
 
 }  // namespace mlsreg
