@@ -88,6 +88,29 @@ void BM_Registration(benchmark::State& state) {
 }
 BENCHMARK(BM_Registration)->DenseRange(0, 5)->Unit(benchmark::kMillisecond);
 
+// MLS-SICP on the same problem with 1 or 2 threads (argument): the speed-up of one registration.
+void BM_MlsSicpThreads(benchmark::State& state) {
+  const BunnyPair& p = Pair();
+  const RegistrationOptions options;  // mls-sicp, defaults
+  const Matrix4 initial =
+      RandomPerturbation(10.0, 10.0 * p.target->sampling_distance(), Vec3::Zero(), 1) * p.truth;
+  const ExecutionOptions execution{static_cast<int>(state.range(0))};
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(Register(*p.target, p.source, initial, options, {}, execution));
+  }
+}
+BENCHMARK(BM_MlsSicpThreads)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The target build with 1 or 2 threads (argument).
+void BM_TargetBuildThreads(benchmark::State& state) {
+  const BunnyPair& p = Pair();
+  TargetOptions options;
+  options.threads = static_cast<int>(state.range(0));
+  for (auto _ : state) benchmark::DoNotOptimize(Target::Build(p.target->cloud(), options));
+  state.SetItemsProcessed(state.iterations() * p.target->cloud().size());
+}
+BENCHMARK(BM_TargetBuildThreads)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 // Adversarial inputs: a cluster of 40,000 identical points (plus two outliers), which made every
 // neighbourhood the whole cloud. Argument 0: the whole target build; 1: the same build told to
 // stop once it started, timing how long the worker stays busy after the request (the

@@ -45,26 +45,30 @@ void MlsCorrespondenceFinder::Find(std::span<const Vec3> queries, std::span<Corr
     status_.assign(queries.size(), ProjectionStatus::kTooFewNeighbors);
   }
   last_iterations_ = 0;
-  if (workspaces_.size() < static_cast<std::size_t>(threads_)) workspaces_.resize(threads_);
-  thread_iterations_.assign(threads_, 0);  // no allocation once sized
+  if (threads_state_.size() < static_cast<std::size_t>(threads_)) threads_state_.resize(threads_);
+  for (ThreadState& state : threads_state_) state.iterations = 0;
   ParallelFor(
       queries.size(), threads_,
       [&](std::size_t begin, std::size_t end, int worker) {
-        FindRange(queries, out, begin, end, workspaces_[worker], thread_iterations_[worker]);
+        FindRange(queries, out, begin, end, threads_state_[worker]);
       },
       16);
-  for (long n : thread_iterations_) last_iterations_ += n;
+  for (const ThreadState& state : threads_state_) last_iterations_ += state.iterations;
 }
 
 bool MlsCorrespondenceFinder::FindRange(std::span<const Vec3> queries,
                                         std::span<Correspondence> out, std::size_t begin,
-                                        std::size_t end, MlsProjector::Workspace& workspace,
-                                        long& iterations) {
+                                        std::size_t end, ThreadState& state) {
+  MlsProjector::Workspace& workspace = state.workspace;
+  long iterations = 0;
   // A projection can take thousands of neighbour visits in dense clusters: ask often.
   constexpr std::uint32_t kStopInterval = 64;
   StopPoller stop(should_stop_, kStopInterval);
   for (std::size_t i = begin; i < end; ++i) {
-    if (stop.Poll()) return false;
+    if (stop.Poll()) {
+      state.iterations = iterations;
+      return false;
+    }
     const Vec3& q = queries[i];
     MlsProjection& previous = previous_[i];
     MlsProjection projection;
@@ -87,6 +91,7 @@ bool MlsCorrespondenceFinder::FindRange(std::span<const Vec3> queries,
     status_[i] = projection.status;
     previous = projection;
   }
+  state.iterations = iterations;
   return true;
 }
 

@@ -1,9 +1,11 @@
 #include "mlsreg/geometry/noise_estimate.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <random>
 
+#include "mlsreg/core/parallel_for.h"
 #include "mlsreg/geometry/height_field_fit.h"
 #include "mlsreg/geometry/weighted_covariance.h"
 #include "mlsreg/geometry/wendland.h"
@@ -69,7 +71,8 @@ double ProbeSigma(const std::vector<Vec3>& points, const KdTree& tree, const Vec
 
 NoiseEstimate EstimateNoise(const std::vector<Vec3>& points, const KdTree& tree, double d,
                             std::span<const std::uint32_t> candidates,
-                            const NoiseEstimateOptions& options, const StopCheck& should_stop) {
+                            const NoiseEstimateOptions& options, const StopCheck& should_stop,
+                            int threads) {
   NoiseEstimate estimate;
   const std::size_t pool = candidates.empty() ? points.size() : candidates.size();
   if (pool == 0 || !(d > 0.0)) return estimate;
@@ -80,16 +83,28 @@ NoiseEstimate EstimateNoise(const std::vector<Vec3>& points, const KdTree& tree,
     const std::size_t i = pick(rng);
     p = points[candidates.empty() ? i : candidates[i]];
   }
-  RadiusNeighbors neighbors;
-  std::vector<double> sigmas;
+  std::vector<double> probe_sigmas(probes.size()), sigmas;
   sigmas.reserve(probes.size());
-  StopPoller stop(should_stop, 16);
   double radius = options.min_fit_radius_d * d;
   for (int round = 0; round < options.max_rounds; ++round) {
+    std::atomic<bool> stopped{false};
+    ParallelFor(
+        probes.size(), threads,
+        [&](std::size_t begin, std::size_t end, int) {
+          RadiusNeighbors neighbors;
+          StopPoller stop(should_stop, 16);
+          for (std::size_t i = begin; i < end; ++i) {
+            if (stopped.load(std::memory_order_relaxed) || stop.Poll()) {
+              stopped = true;
+              return;
+            }
+            probe_sigmas[i] = ProbeSigma(points, tree, probes[i], radius, neighbors);
+          }
+        },
+        16);
+    if (stopped) return NoiseEstimate{.stopped = true};
     sigmas.clear();
-    for (const Vec3& p : probes) {
-      if (stop.Poll()) return NoiseEstimate{.stopped = true};
-      const double sigma = ProbeSigma(points, tree, p, radius, neighbors);
+    for (double sigma : probe_sigmas) {
       if (sigma >= 0.0) sigmas.push_back(sigma);
     }
     if (sigmas.empty()) return NoiseEstimate{};

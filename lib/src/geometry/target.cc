@@ -61,7 +61,7 @@ absl::StatusOr<std::shared_ptr<Target>> Target::BuildMutable(PointCloud cloud,
                                     target->cloud_.viewpoint, {}, should_stop, options.threads);
   if (target->surface_.stopped) return cancelled();
   target->noise_ = EstimateNoise(target->cloud_.points, *target->tree_, target->sampling_distance_,
-                                 {}, {}, should_stop);
+                                 {}, {}, should_stop, options.threads);
   if (target->noise_.stopped) return cancelled();
   if (target->cloud_.intrinsics) {
     auto grid = DepthGrid::Build(target->cloud_.points, *target->cloud_.intrinsics);

@@ -54,8 +54,9 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
   if (reads_mls && !options.mls.radius_d) {
     const internal::Clock::time_point phase = internal::Clock::now();
     source_tree.emplace(source.points);
-    const NoiseEstimate noise = EstimateNoise(
-        source.points, *source_tree, target.sampling_distance(), {}, {}, callbacks.should_stop);
+    const NoiseEstimate noise =
+        EstimateNoise(source.points, *source_tree, target.sampling_distance(), {}, {},
+                      callbacks.should_stop, execution.threads);
     if (noise.stopped) {  // cancelled before any iteration
       RegistrationResult cancelled;
       cancelled.transform = Orthonormalize(initial).matrix();

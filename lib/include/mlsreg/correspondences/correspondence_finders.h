@@ -48,17 +48,22 @@ class MlsCorrespondenceFinder final : public CorrespondenceFinder {
   long last_iterations() const { return last_iterations_; }
 
  private:
+  // One per thread, each on its own cache lines: threads writing neighbours' vector headers or
+  // counters would otherwise invalidate each other's caches at every query.
+  struct alignas(64) ThreadState {
+    MlsProjector::Workspace workspace;
+    long iterations = 0;
+  };
   // Queries [begin, end) of one Find, with that thread's workspace; false when stopped.
   bool FindRange(std::span<const Vec3> queries, std::span<Correspondence> out, std::size_t begin,
-                 std::size_t end, MlsProjector::Workspace& workspace, long& iterations);
+                 std::size_t end, ThreadState& state);
 
   MlsProjector projector_;
   bool warm_start_;
   FarQueryPolicy far_queries_;
   bool oriented_;
   double radius_;
-  std::vector<MlsProjector::Workspace> workspaces_;  // one per thread
-  std::vector<long> thread_iterations_;
+  std::vector<ThreadState> threads_state_;
   std::vector<MlsProjection> previous_;
   std::vector<ProjectionStatus> status_;
   long last_iterations_ = 0;

@@ -40,6 +40,6 @@ struct NoiseEstimateOptions {
 NoiseEstimate EstimateNoise(const std::vector<Vec3>& points, const KdTree& tree, double d,
                             std::span<const std::uint32_t> candidates = {},
                             const NoiseEstimateOptions& options = {},
-                            const StopCheck& should_stop = {});
+                            const StopCheck& should_stop = {}, int threads = 1);
 
 }  // namespace mlsreg
