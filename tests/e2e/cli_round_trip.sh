@@ -42,7 +42,14 @@ import json, sys
 r, l = (json.load(open(p)) for p in sys.argv[1:3])
 assert r["transform"] == l["transform"], (r["transform"], l["transform"])
 assert r["ground_truth"]["success"], r["ground_truth"]
+# The automatic MLS radius and the noise it was chosen from cross the wire.
+for k in ("mls_radius_d", "mls_radius_auto", "target_noise_sigma_d", "source_noise_sigma_d"):
+    assert r[k] == l[k], (k, r[k], l[k])
+assert r["mls_radius_auto"] and r["mls_radius_d"] == 5.0, r
+assert 0.0 < r["target_noise_sigma_d"] < 0.5, r
 PY
+grep -q "MLS radius: 5.00 d (auto" "$work/remote.txt" || fail "no radius line: $(head -3 "$work/remote.txt")"
+"$MLSREG" targets get --server "$A" bun045 | grep -q "noise 0\." || fail "targets get shows no noise"
 
 # Bad input is refused with INVALID_ARGUMENT naming the field.
 if "$MLSREG" register --server "$A" --target bun045 --source data/bunny/bun000.ply --mls-radius -1 \
