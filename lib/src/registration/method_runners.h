@@ -28,7 +28,7 @@ struct RegistrationProblem {
   internal::Clock::time_point start;
   int iteration_offset = 0;             // iterations of earlier phases (composite methods)
   const KdTree* source_tree = nullptr;  // the source's index when Register built one already
-  int threads = 1;       // ExecutionOptions::threads
+  int threads = 1;                      // ExecutionOptions::threads
   double noise_d = 0.0;  // the clouds' estimated noise (the larger), units of d; 0: unknown
 };
 
