@@ -98,6 +98,13 @@ TEST(ServerConfigTest, RefusesPlaintextOnRemoteAddressesAndUnreadableCertificate
   config = ServerConfig();
   config.max_chunk_bytes = 64 << 20;  // a chunk must fit in a message
   EXPECT_EQ(Validate(config).code(), absl::StatusCode::kInvalidArgument);
+  for (int threads : {0, 257}) {  // threads inside one job
+    config = ServerConfig();
+    config.job_threads = threads;
+    s = Validate(config);
+    EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_NE(s.message().find("job_threads"), absl::string_view::npos) << s;
+  }
 }
 
 // ---------------------------------------------------------------------------- job pool

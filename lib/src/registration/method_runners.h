@@ -42,6 +42,16 @@ struct SourceSamples {
 SourceSamples SubsampleSource(const PointCloud& source, const RegistrationOptions& options,
                               RegistrationResult& result);
 
+// The result of a registration stopped before its first iteration: the start pose, cancelled.
+// Register sets the total time.
+inline RegistrationResult CancelledBeforeIterations(const Matrix4& initial, double d) {
+  RegistrationResult result;
+  result.transform = Orthonormalize(initial).matrix();
+  result.termination = Termination::kCancelled;
+  result.sampling_distance = d;
+  return result;
+}
+
 // Correspondence policies (MethodSpec::make_finder).
 std::unique_ptr<CorrespondenceFinder> MakeClosestPointFinder(const Target& target,
                                                              const RegistrationOptions& options);

@@ -184,6 +184,17 @@ std::vector<ParameterSpec> MakeTable() {
   };
 }
 
+// The whole of `text` as a number of type T, into `value`; false when it is not one.
+template <typename T>
+bool ParseNumber(std::string_view text, ParameterValue& value) {
+  T v;
+  const char* end = text.data() + text.size();
+  auto [p, ec] = std::from_chars(text.data(), end, v);
+  if (ec != std::errc() || p != end) return false;
+  value = v;
+  return true;
+}
+
 // Bounds print as integers where they are ("1000000", not "1e+06").
 std::string Bound(double v) {
   if (std::abs(v) < 1e15 && v == std::floor(v)) return absl::StrCat(static_cast<std::int64_t>(v));
@@ -217,7 +228,7 @@ std::string ParameterSpec::Rule() const {
                         Bound(range.max), "]");
   }
   if (auto_allowed) rule += " or auto";
-  if (!note.empty()) rule += " " + std::string(note);
+  if (!note.empty()) rule.append(" ").append(note);
   return rule;
 }
 
@@ -280,7 +291,6 @@ absl::StatusOr<ParameterValue> ParameterSpec::Parse(std::string_view text,
                                       "' is not valid: " + Rule());
   };
   ParameterValue value;
-  const char* end = text.data() + text.size();
   if (auto_allowed && text == "auto") return ParameterValue(std::monostate{});
   switch (type) {
     case ParameterType::kEnum: {
@@ -298,27 +308,15 @@ absl::StatusOr<ParameterValue> ParameterSpec::Parse(std::string_view text,
         return bad();
       }
       break;
-    case ParameterType::kInt: {
-      std::int64_t v;
-      auto [p, ec] = std::from_chars(text.data(), end, v);
-      if (ec != std::errc() || p != end) return bad();
-      value = v;
+    case ParameterType::kInt:
+      if (!ParseNumber<std::int64_t>(text, value)) return bad();
       break;
-    }
-    case ParameterType::kUint64: {
-      std::uint64_t v;
-      auto [p, ec] = std::from_chars(text.data(), end, v);
-      if (ec != std::errc() || p != end) return bad();
-      value = v;
+    case ParameterType::kUint64:
+      if (!ParseNumber<std::uint64_t>(text, value)) return bad();
       break;
-    }
-    case ParameterType::kDouble: {
-      double v;
-      auto [p, ec] = std::from_chars(text.data(), end, v);
-      if (ec != std::errc() || p != end) return bad();
-      value = v;
+    case ParameterType::kDouble:
+      if (!ParseNumber<double>(text, value)) return bad();
       break;
-    }
   }
   if (absl::Status s = Check(value, field); !s.ok()) return s;
   return value;

@@ -57,11 +57,9 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
     const NoiseEstimate noise =
         EstimateNoise(source.points, *source_tree, target.sampling_distance(), {}, {},
                       callbacks.should_stop, execution.threads);
-    if (noise.stopped) {  // cancelled before any iteration
-      RegistrationResult cancelled;
-      cancelled.transform = Orthonormalize(initial).matrix();
-      cancelled.termination = Termination::kCancelled;
-      cancelled.sampling_distance = target.sampling_distance();
+    if (noise.stopped) {
+      RegistrationResult cancelled =
+          internal::CancelledBeforeIterations(initial, target.sampling_distance());
       cancelled.timings.total = internal::Seconds(start);
       return cancelled;
     }

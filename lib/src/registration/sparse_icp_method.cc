@@ -293,10 +293,8 @@ absl::StatusOr<RegistrationResult> RunSmoothedTargetSicp(const RegistrationProbl
                                  problem.threads);
   if (!smoothed.ok()) return smoothed.status();
   if (*smoothed == nullptr) {  // cancelled while smoothing: no iteration ran
-    RegistrationResult result;
-    result.transform = Orthonormalize(problem.initial).matrix();
-    result.termination = Termination::kCancelled;
-    result.sampling_distance = problem.target->sampling_distance();
+    RegistrationResult result =
+        CancelledBeforeIterations(problem.initial, problem.target->sampling_distance());
     result.timings.preprocessing = Seconds(phase);
     return result;
   }
