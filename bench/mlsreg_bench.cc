@@ -4,6 +4,7 @@
 
 #include <memory>
 
+#include "mlsreg/geometry/mls_patches.h"
 #include "mlsreg/geometry/mls_projector.h"
 #include "mlsreg/geometry/sampling.h"
 #include "mlsreg/io/io.h"
@@ -61,12 +62,79 @@ void BM_MlsProjection(benchmark::State& state) {
 }
 BENCHMARK(BM_MlsProjection)->Arg(5)->Arg(8)->Unit(benchmark::kMillisecond);
 
+// Argument: r in units of d. The same queries through MLS patches (geometry/mls_patches.h) built
+// at r: cold (two blends, as at a registration's first iteration) and warm (one blend from the
+// query on its previous projection's tangent plane, as in every later iteration).
+MlsPatches PatchesAt(const BunnyPair& p, double radius_d) {
+  MlsOptions options;
+  options.radius = radius_d * p.target->sampling_distance();
+  return *MlsPatches::Build(p.target->points(), p.target->tree(), options, nullptr, 1);
+}
+
+void BM_MlsPatchProjection(benchmark::State& state) {
+  const BunnyPair& p = Pair();
+  const MlsPatches patches = PatchesAt(p, static_cast<double>(state.range(0)));
+  for (auto _ : state) {
+    for (const Vec3& q : p.queries) benchmark::DoNotOptimize(patches.Project(q, true));
+  }
+  state.SetItemsProcessed(state.iterations() * p.queries.size());
+}
+BENCHMARK(BM_MlsPatchProjection)->Arg(5)->Arg(8)->Unit(benchmark::kMicrosecond);
+
+void BM_MlsPatchProjectionWarm(benchmark::State& state) {
+  const BunnyPair& p = Pair();
+  const MlsPatches patches = PatchesAt(p, static_cast<double>(state.range(0)));
+  // Previous projections of queries displaced by 0.5 d, as one ICP iteration moves them.
+  const double d = p.target->sampling_distance();
+  std::vector<Vec3> starts;
+  for (const Vec3& q : p.queries) {
+    const MlsProjection previous = patches.Project(q + Vec3(0.3, 0.3, 0.3) * d, true);
+    starts.push_back(q - (q - previous.point).dot(previous.normal) * previous.normal);
+  }
+  for (auto _ : state) {
+    for (std::size_t i = 0; i < p.queries.size(); ++i) {
+      benchmark::DoNotOptimize(patches.ProjectNear(p.queries[i], starts[i], true));
+    }
+  }
+  state.SetItemsProcessed(state.iterations() * p.queries.size());
+}
+BENCHMARK(BM_MlsPatchProjectionWarm)->Arg(5)->Arg(8)->Unit(benchmark::kMicrosecond);
+
+// Argument 0: the target build without MLS patches, 1: with them (the default). Counter
+// bytes_per_point: Target::MemoryBytes() / points.
 void BM_TargetBuild(benchmark::State& state) {
   const BunnyPair& p = Pair();
-  for (auto _ : state) benchmark::DoNotOptimize(Target::Build(p.target->cloud()));
+  TargetOptions options;
+  options.build_mls_patches = state.range(0) != 0;
+  std::size_t bytes = 0;
+  for (auto _ : state) {
+    auto target = Target::Build(p.target->cloud(), options);
+    bytes = (*target)->MemoryBytes();
+    benchmark::DoNotOptimize(target);
+  }
   state.SetItemsProcessed(state.iterations() * p.target->cloud().size());
+  state.counters["bytes_per_point"] =
+      static_cast<double>(bytes) / static_cast<double>(p.target->cloud().size());
 }
-BENCHMARK(BM_TargetBuild)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_TargetBuild)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+// MLS-SICP with each MLS projection (argument: 0 patches then exact, the default; 1 patches
+// only; 2 exact only).
+void BM_MlsSicpProjection(benchmark::State& state) {
+  const BunnyPair& p = Pair();
+  RegistrationOptions options;
+  options.mls.projection = static_cast<MlsProjectionKind>(state.range(0));
+  const Matrix4 initial =
+      RandomPerturbation(10.0, 10.0 * p.target->sampling_distance(), Vec3::Zero(), 1) * p.truth;
+  int iterations = 0;
+  for (auto _ : state) {
+    auto result = Register(*p.target, p.source, initial, options);
+    iterations = result->iterations;
+    benchmark::DoNotOptimize(result);
+  }
+  state.counters["iterations"] = iterations;
+}
+BENCHMARK(BM_MlsSicpProjection)->DenseRange(0, 2)->Unit(benchmark::kMillisecond);
 
 // Argument: index into AllMethods() (cp-sicp, mls-sicp, st-sicp, cp-sicp+mls-sicp, g-icp, fgr).
 // One full registration from the evaluation protocol's start pose (10 degrees, 10 d from the

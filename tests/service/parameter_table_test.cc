@@ -67,7 +67,9 @@ TEST(ParameterTableTest, EveryParameterHasOneWireFieldOfItsTypeAndEveryFieldARow
     ASSERT_NE(f, nullptr) << spec.wire_field << " is not in RegistrationParameters";
     EXPECT_EQ(f->cpp_type(), WireTypeOf(spec.type));
     // Scalars are optional, so that unset means "the default"; enums have UNSPECIFIED for that.
-    if (spec.type != ParameterType::kEnum) EXPECT_TRUE(f->has_presence());
+    if (spec.type != ParameterType::kEnum) {
+      EXPECT_TRUE(f->has_presence());
+    }
     if (spec.type == ParameterType::kEnum) {
       ASSERT_NE(spec.enum_names, nullptr);
       EXPECT_EQ(f->enum_type()->name(), std::string(spec.enum_names->wire_enum));
@@ -85,6 +87,7 @@ TEST(ParameterTableTest, EnumTablesMatchTheWireEnums) {
   ExpectEnumMatchesWire(MethodNames());
   ExpectEnumMatchesWire(SicpMetricNames());
   ExpectEnumMatchesWire(FarQueryPolicyNames());
+  ExpectEnumMatchesWire(MlsProjectionKindNames());
   ExpectEnumMatchesWire(CoarsePhaseFiltersNames());
   ExpectEnumMatchesWire(TerminationNames());
 }

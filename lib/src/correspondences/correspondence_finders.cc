@@ -23,23 +23,64 @@ void ClosestPointFinder::Find(std::span<const Vec3> queries, std::span<Correspon
       512);
 }
 
+namespace {
+
+// Whether patches were built for these projection options.
+bool PatchesFit(const MlsPatches& patches, const MlsOptions& options) {
+  return std::abs(patches.radius() - options.radius) <= 1e-9 * options.radius &&
+         patches.polynomial_degree() == options.polynomial_degree &&
+         patches.mls_options().max_iterations == options.max_iterations;
+}
+
+}  // namespace
+
 MlsCorrespondenceFinder::MlsCorrespondenceFinder(const Target& target, const MlsOptions& options,
-                                                 bool warm_start, FarQueryPolicy far_queries)
-    : projector_(target.points(), target.tree(), options,
+                                                 bool warm_start, FarQueryPolicy far_queries,
+                                                 MlsProjectionKind projection)
+    : target_(target),
+      projector_(target.points(), target.tree(), options,
                  target.surface().oriented ? &target.surface().normals : nullptr),
       warm_start_(warm_start),
       far_queries_(far_queries),
+      projection_(projection),
       oriented_(target.surface().oriented),
       radius_(options.radius) {
   projector_.set_seed_far_queries_from_nearest_sample(far_queries != FarQueryPolicy::kDrop);
+  if (projection_ != MlsProjectionKind::kExact && target.mls_patches() &&
+      PatchesFit(*target.mls_patches(), options)) {
+    patches_ = target.mls_patches();
+  }
 }
 
 void MlsCorrespondenceFinder::Refine() {
   far_queries_ = FarQueryPolicy::kDrop;
   projector_.set_seed_far_queries_from_nearest_sample(false);
+  if (projection_ == MlsProjectionKind::kPatchesThenExact) {
+    // The fine phase projects exactly; warm starts carry over from the patches' projections.
+    projection_ = MlsProjectionKind::kExact;
+    patches_ = nullptr;
+  }
+}
+
+bool MlsCorrespondenceFinder::EnsurePatches() {
+  if (projection_ == MlsProjectionKind::kExact || patches_) return true;
+  MlsOptions options = projector_.options();
+  options.seed_far_queries_from_nearest_sample = true;
+  absl::StatusOr<MlsPatches> built =
+      MlsPatches::Build(target_.points(), target_.tree(), options,
+                        oriented_ ? &target_.surface().normals : nullptr, threads_, should_stop_);
+  if (absl::IsCancelled(built.status())) return false;
+  if (built.ok()) {
+    own_patches_ = *std::move(built);
+    patches_ = &*own_patches_;
+  } else {
+    projection_ = MlsProjectionKind::kExact;  // no patch fits: the exact projection reports why
+  }
+  return true;
 }
 
 void MlsCorrespondenceFinder::Find(std::span<const Vec3> queries, std::span<Correspondence> out) {
+  if (!EnsurePatches()) return;
   if (previous_.size() != queries.size()) {
     previous_.assign(queries.size(), MlsProjection{});
     status_.assign(queries.size(), ProjectionStatus::kTooFewNeighbors);
@@ -54,6 +95,15 @@ void MlsCorrespondenceFinder::Find(std::span<const Vec3> queries, std::span<Corr
       },
       16);
   for (const ThreadState& state : threads_state_) last_iterations_ += state.iterations;
+}
+
+MlsProjection MlsCorrespondenceFinder::ProjectOne(const Vec3& query, const Vec3* start,
+                                                  MlsProjector::Workspace& workspace) const {
+  const bool seed = far_queries_ != FarQueryPolicy::kDrop;
+  if (patches_) {
+    return start ? patches_->ProjectNear(query, *start, seed) : patches_->Project(query, seed);
+  }
+  return start ? projector_.ProjectFrom(*start, workspace) : projector_.Project(query, workspace);
 }
 
 bool MlsCorrespondenceFinder::FindRange(std::span<const Vec3> queries,
@@ -71,17 +121,13 @@ bool MlsCorrespondenceFinder::FindRange(std::span<const Vec3> queries,
     }
     const Vec3& q = queries[i];
     MlsProjection& previous = previous_[i];
-    MlsProjection projection;
     // Warm start only from a direct projection that is still within the support of the query;
-    // otherwise (first iteration, far or boundary queries) run Algorithm 1 from the query.
-    if (warm_start_ && previous.status == ProjectionStatus::kOk &&
-        !previous.seeded_from_nearest_sample &&
-        (q - previous.point).squaredNorm() < radius_ * radius_) {
-      const Vec3 start = q - (q - previous.point).dot(previous.normal) * previous.normal;
-      projection = projector_.ProjectFrom(start, workspace);
-    } else {
-      projection = projector_.Project(q, workspace);
-    }
+    // otherwise (first iteration, far or boundary queries) start from the query.
+    const bool warm = warm_start_ && previous.status == ProjectionStatus::kOk &&
+                      !previous.seeded_from_nearest_sample &&
+                      (q - previous.point).squaredNorm() < radius_ * radius_;
+    const Vec3 start = q - (q - previous.point).dot(previous.normal) * previous.normal;
+    const MlsProjection projection = ProjectOne(q, warm ? &start : nullptr, workspace);
     iterations += projection.iterations;
     Correspondence& c = out[i];
     c.point = projection.point;

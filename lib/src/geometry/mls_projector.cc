@@ -2,8 +2,6 @@
 
 #include <cmath>
 
-#include "mlsreg/geometry/height_field_fit.h"
-#include "mlsreg/geometry/weighted_covariance.h"
 #include "mlsreg/geometry/wendland.h"
 
 namespace mlsreg {
@@ -32,6 +30,47 @@ MlsProjection MlsProjector::Project(const Vec3& query, Workspace& workspace) con
   return ProjectFrom(query, workspace);
 }
 
+ProjectionStatus MlsProjector::Fit(const Vec3& s, Workspace& ws, int& neighbors) const {
+  const double r = options_.radius;
+  // Lines 4-7: Wendland weights around s, weighted mean and weighted PCA.
+  const std::size_t n = ws.candidates.size();
+  if (ws.weights.size() < n) ws.weights.resize(n);
+  WeightedCovariance covariance(s);
+  Vec3 normal_hint = Vec3::Zero();
+  for (std::size_t j = 0; j < n; ++j) {
+    const Vec3& q = points_[ws.candidates[j].first];
+    const double w = WendlandWeight((q - s).norm(), r);
+    ws.weights[j] = w;
+    if (w <= 0.0) continue;
+    covariance.Add(q, w);
+    if (oriented_normals_) normal_hint += w * (*oriented_normals_)[ws.candidates[j].first];
+  }
+  neighbors = covariance.count();
+  if (covariance.count() < 3) return ProjectionStatus::kTooFewNeighbors;
+  MlsLocalFit& fit = ws.last_fit;
+  LocalFrame& frame = fit.frame;
+  if (!covariance.Finalize(frame)) return ProjectionStatus::kDegenerate;
+  if (oriented_normals_ && frame.normal.dot(normal_hint) < 0.0) {
+    frame.normal = -frame.normal;
+    frame.tangent_v = -frame.tangent_v;  // keep (u, v, n) right-handed
+  }
+
+  // Line 8: project the iterate onto the reference plane.
+  fit.origin = s - (s - frame.mean).dot(frame.normal) * frame.normal;
+
+  // Line 9: fit the height field over the plane, in coordinates scaled by 1/r.
+  HeightFieldFit height_fit(options_.polynomial_degree);
+  const double inv_r = 1.0 / r;
+  for (std::size_t j = 0; j < n; ++j) {
+    if (ws.weights[j] <= 0.0) continue;
+    const Vec3 local = (points_[ws.candidates[j].first] - fit.origin) * inv_r;
+    height_fit.Add(local.dot(frame.tangent_u), local.dot(frame.tangent_v), local.dot(frame.normal),
+                   ws.weights[j]);
+  }
+  if (!height_fit.Finalize(fit.height)) return ProjectionStatus::kDegenerate;
+  return ProjectionStatus::kOk;
+}
+
 MlsProjection MlsProjector::ProjectFrom(const Vec3& start, Workspace& ws) const {
   const double r = options_.radius;
   const double gather_radius = r * (1.0 + options_.search_margin);
@@ -50,73 +89,32 @@ MlsProjection MlsProjector::ProjectFrom(const Vec3& start, Workspace& ws) const 
       gathered_at = s;
       have_candidates = true;
     }
-
-    // Lines 4-7: Wendland weights around s, weighted mean and weighted PCA.
-    const std::size_t n = ws.candidates.size();
-    if (ws.weights.size() < n) ws.weights.resize(n);
-    WeightedCovariance covariance(s);
-    Vec3 normal_hint = Vec3::Zero();
-    for (std::size_t j = 0; j < n; ++j) {
-      const Vec3& q = points_[ws.candidates[j].first];
-      const double w = WendlandWeight((q - s).norm(), r);
-      ws.weights[j] = w;
-      if (w <= 0.0) continue;
-      covariance.Add(q, w);
-      if (oriented_normals_) normal_hint += w * (*oriented_normals_)[ws.candidates[j].first];
+    const ProjectionStatus status = Fit(s, ws, result.neighbors);
+    if (status == ProjectionStatus::kTooFewNeighbors && iteration == 1 && !reseeded &&
+        options_.seed_far_queries_from_nearest_sample && tree_.size() > 0) {
+      // The query is too far from the target to start Algorithm 1: start from the closest
+      // target sample. This costs one iteration of the budget.
+      s = points_[tree_.Nearest(s).index];
+      have_candidates = false;
+      reseeded = true;
+      result.seeded_from_nearest_sample = true;
+      continue;
     }
-    result.neighbors = covariance.count();
-
-    if (covariance.count() < 3) {
-      if (iteration == 1 && !reseeded && options_.seed_far_queries_from_nearest_sample &&
-          tree_.size() > 0) {
-        // The query is too far from the target to start Algorithm 1: start from the closest
-        // target sample. This costs one iteration of the budget.
-        s = points_[tree_.Nearest(s).index];
-        have_candidates = false;
-        reseeded = true;
-        result.seeded_from_nearest_sample = true;
-        continue;
-      }
-      result.status = ProjectionStatus::kTooFewNeighbors;
-      return result;
-    }
-    LocalFrame frame;
-    if (!covariance.Finalize(frame)) {
-      result.status = ProjectionStatus::kDegenerate;
-      return result;
-    }
-    if (oriented_normals_ && frame.normal.dot(normal_hint) < 0.0) {
-      frame.normal = -frame.normal;
-      frame.tangent_v = -frame.tangent_v;  // keep (u, v, n) right-handed
-    }
-
-    // Line 8: project the iterate onto the reference plane.
-    const Vec3 on_plane = s - (s - frame.mean).dot(frame.normal) * frame.normal;
-
-    // Line 9: fit the height field over the plane, in coordinates scaled by 1/r.
-    HeightFieldFit fit(options_.polynomial_degree);
-    const double inv_r = 1.0 / r;
-    for (std::size_t j = 0; j < n; ++j) {
-      if (ws.weights[j] <= 0.0) continue;
-      const Vec3 local = (points_[ws.candidates[j].first] - on_plane) * inv_r;
-      fit.Add(local.dot(frame.tangent_u), local.dot(frame.tangent_v), local.dot(frame.normal),
-              ws.weights[j]);
-    }
-    HeightField height;
-    if (!fit.Finalize(height)) {
-      result.status = ProjectionStatus::kDegenerate;
+    if (status != ProjectionStatus::kOk) {
+      result.status = status;
       return result;
     }
 
     // Line 10: move onto the polynomial surface.
-    const Vec3 next = on_plane + (height.ValueAtOrigin() * r) * frame.normal;
+    const MlsLocalFit& fit = ws.last_fit;
+    const Vec3 next = fit.origin + (fit.height.ValueAtOrigin() * r) * fit.frame.normal;
     const double move = (next - s).norm();
     s = next;
     result.point = s;
-    result.normal =
-        (frame.normal - height.SlopeX() * frame.tangent_u - height.SlopeY() * frame.tangent_v)
-            .normalized();
-    result.curvature = frame.surface_variation;
+    result.normal = (fit.frame.normal - fit.height.SlopeX() * fit.frame.tangent_u -
+                     fit.height.SlopeY() * fit.frame.tangent_v)
+                        .normalized();
+    result.curvature = fit.frame.surface_variation;
     if (move < options_.tolerance) {
       result.status = ProjectionStatus::kOk;
       return result;

@@ -3,6 +3,7 @@
 #include <chrono>
 
 #include "absl/strings/str_cat.h"
+#include "mlsreg/geometry/mls_radius.h"
 #include "mlsreg/geometry/sampling.h"
 
 namespace mlsreg {
@@ -24,7 +25,9 @@ absl::StatusOr<std::shared_ptr<const Target>> Target::WithMovedPoints(
   PointCloud moved = cloud_;
   moved.points = std::move(points);
   moved.normals.clear();
-  absl::StatusOr<std::shared_ptr<Target>> target = BuildMutable(std::move(moved), options_, {});
+  TargetOptions options = options_;
+  options.build_mls_patches = false;  // the smoothed copy is matched by closest points
+  absl::StatusOr<std::shared_ptr<Target>> target = BuildMutable(std::move(moved), options, {});
   if (!target.ok()) return target.status();
   (*target)->surface_.curvature = surface_.curvature;
   return std::shared_ptr<const Target>(*std::move(target));
@@ -63,6 +66,18 @@ absl::StatusOr<std::shared_ptr<Target>> Target::BuildMutable(PointCloud cloud,
   target->noise_ = EstimateNoise(target->cloud_.points, *target->tree_, target->sampling_distance_,
                                  {}, {}, should_stop, options.threads);
   if (target->noise_.stopped) return cancelled();
+  if (options.build_mls_patches) {
+    MlsOptions mls;
+    mls.radius = AutoMlsRadiusD(target->noise_.sigma_d) * target->sampling_distance_;
+    absl::StatusOr<MlsPatches> patches =
+        MlsPatches::Build(target->cloud_.points, *target->tree_, mls,
+                          target->surface_.oriented ? &target->surface_.normals : nullptr,
+                          options.threads, should_stop);
+    if (absl::IsCancelled(patches.status())) return cancelled();
+    // A cloud no patch fits (no 3 samples within r anywhere) is still a target: MLS matching
+    // against it then runs the exact Algorithm 1, which reports the same shortage per query.
+    if (patches.ok()) target->mls_patches_ = *std::move(patches);
+  }
   if (target->cloud_.intrinsics) {
     auto grid = DepthGrid::Build(target->cloud_.points, *target->cloud_.intrinsics);
     if (!grid.ok()) return grid.status();
@@ -83,7 +98,8 @@ std::size_t Target::MemoryBytes() const {
   return cloud_.points.capacity() * sizeof(Vec3) + cloud_.normals.capacity() * sizeof(Vec3) +
          surface_.normals.capacity() * sizeof(Vec3) +
          surface_.curvature.capacity() * sizeof(double) + surface_.valid.capacity() +
-         tree_->MemoryBytes() + (grid_ ? grid_->MemoryBytes() : 0) + sizeof(Target);
+         tree_->MemoryBytes() + (grid_ ? grid_->MemoryBytes() : 0) +
+         (mls_patches_ ? mls_patches_->MemoryBytes() : 0) + sizeof(Target);
 }
 
 }  // namespace mlsreg

@@ -25,6 +25,17 @@ const EnumNames& FarQueryPolicyNames() {
   return kNames;
 }
 
+const EnumNames& MlsProjectionKindNames() {
+  static constexpr EnumValueName kValues[] = {
+      {static_cast<int>(MlsProjectionKind::kPatchesThenExact), "patches-then-exact",
+       "PATCHES_THEN_EXACT"},
+      {static_cast<int>(MlsProjectionKind::kPatches), "patches", "PATCHES"},
+      {static_cast<int>(MlsProjectionKind::kExact), "exact", "EXACT"},
+  };
+  static constexpr EnumNames kNames{"MlsProjection", "MLS_PROJECTION_", kValues};
+  return kNames;
+}
+
 const EnumNames& SicpMetricNames() {
   static constexpr EnumValueName kValues[] = {
       {static_cast<int>(SicpMetric::kPointToPlane), "point-to-plane", "POINT_TO_PLANE"},

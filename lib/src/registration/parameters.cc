@@ -154,6 +154,10 @@ std::vector<ParameterSpec> MakeTable() {
           "mls.far_queries", "mls-far-queries", "mls_far_queries", mls, FarQueryPolicyNames(),
           "queries with < 3 target samples within r: seed them from the nearest sample until "
           "converged, then drop them; always seed; or drop (paper Alg. 1)"),
+      EnumRow<&O::mls, &MlsParams::projection>(
+          "mls.projection", "mls-projection", "mls_projection", mls, MlsProjectionKindNames(),
+          "MLS projection: the target's precomputed patches until first converged, then the "
+          "exact Algorithm 1; patches only (fastest); or exact only (the paper's reference)"),
       Row<&O::filter, &FilterParams::min_normal_dot>("filter.min_normal_dot", "tau-n",
                                                      "min_normal_dot", filter, kClosed(-1, 1),
                                                      "normal filter: min <n1,n2>", "(-1 disables)"),

@@ -4,8 +4,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "method_runners.h"
+#include "mlsreg/geometry/mls_radius.h"
 #include "mlsreg/geometry/noise_estimate.h"
-#include "mlsreg/registration/mls_radius.h"
 
 namespace mlsreg {
 
@@ -24,6 +24,28 @@ const EnumNames& TerminationNames() {
 std::string_view TerminationName(Termination termination) {
   return NameOf(TerminationNames(), termination);
 }
+
+namespace {
+
+// An automatic radius within kPatchRadiusTolerance of the one the target's patches were built
+// at becomes that radius, so that matching uses the patches built with the target instead of
+// building its own (a source whose noise estimate differs from the target's by a few percent
+// would otherwise always miss them).
+constexpr double kPatchRadiusTolerance = 0.1;
+
+double SnapToTargetPatches(const Target& target, const RegistrationOptions& options,
+                           double radius_d) {
+  const MlsPatches* patches = target.mls_patches();
+  if (!patches || options.mls.projection == MlsProjectionKind::kExact ||
+      options.mls.polynomial_degree != patches->polynomial_degree() ||
+      options.mls.max_iterations != patches->mls_options().max_iterations) {
+    return radius_d;
+  }
+  const double patches_d = patches->radius() / target.sampling_distance();
+  return std::abs(radius_d - patches_d) <= kPatchRadiusTolerance * patches_d ? patches_d : radius_d;
+}
+
+}  // namespace
 
 absl::StatusOr<RegistrationResult> Register(const Target& target, const PointCloud& source,
                                             const Matrix4& initial,
@@ -64,7 +86,8 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
       return cancelled;
     }
     source_noise_d = noise.sigma_d;
-    resolved.mls.radius_d = AutoMlsRadiusD(std::max(target.noise().sigma_d, source_noise_d));
+    resolved.mls.radius_d = SnapToTargetPatches(
+        target, options, AutoMlsRadiusD(std::max(target.noise().sigma_d, source_noise_d)));
     noise_seconds = internal::Seconds(phase);
   }
 

@@ -16,7 +16,7 @@
 #include "mlsreg/geometry/mls_projector.h"
 #include "mlsreg/geometry/sampling.h"
 #include "mlsreg/geometry/surface_analysis.h"
-#include "mlsreg/registration/mls_radius.h"
+#include "mlsreg/geometry/mls_radius.h"
 #include "mlsreg/solvers/sparse_icp.h"
 
 namespace mlsreg::internal {
@@ -226,7 +226,8 @@ std::unique_ptr<CorrespondenceFinder> MakeClosestPointFinder(const Target& targe
 std::unique_ptr<CorrespondenceFinder> MakeMlsFinder(const Target& target,
                                                     const RegistrationOptions& options) {
   return std::make_unique<MlsCorrespondenceFinder>(target, MlsOptionsFor(target, options),
-                                                   options.mls.warm_start, options.mls.far_queries);
+                                                   options.mls.warm_start, options.mls.far_queries,
+                                                   options.mls.projection);
 }
 
 std::unique_ptr<CorrespondenceFinder> MakeBilinearFinder(const Target& target,

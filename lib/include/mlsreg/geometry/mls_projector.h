@@ -7,7 +7,9 @@
 #include <vector>
 
 #include "mlsreg/core/point_cloud.h"
+#include "mlsreg/geometry/height_field_fit.h"
 #include "mlsreg/geometry/kd_tree.h"
+#include "mlsreg/geometry/weighted_covariance.h"
 
 namespace mlsreg {
 
@@ -52,12 +54,24 @@ struct MlsProjection {
   bool seeded_from_nearest_sample = false;
 };
 
+// One step of Algorithm 1 at an iterate s (lines 4-9): the Wendland-weighted reference plane
+// around s and the height field fitted over it.
+struct MlsLocalFit {
+  LocalFrame frame;            // weighted PCA around s, oriented like the target normals when known
+  Vec3 origin = Vec3::Zero();  // s projected onto the reference plane: the height field's origin
+  // g over ((p - origin) . u, (p - origin) . v) / r, heights in units of r.
+  HeightField height;
+};
+
 class MlsProjector {
  public:
   // Scratch buffers for one thread. Reusing one keeps projections allocation-free.
   struct Workspace {
     RadiusNeighbors candidates;
     std::vector<double> weights;
+    // The fit of the last projection's final iteration (valid when its status is kOk): the
+    // local surface at the projected point.
+    MlsLocalFit last_fit;
   };
 
   // `points` and `tree` must outlive the projector. `oriented_normals` (may be null) are per-point
@@ -79,6 +93,10 @@ class MlsProjector {
   }
 
  private:
+  // Lines 4-9 at the iterate `s` over the gathered `workspace.candidates`, into
+  // `workspace.last_fit`; kOk, kTooFewNeighbors (< 3 weighted samples) or kDegenerate.
+  ProjectionStatus Fit(const Vec3& s, Workspace& workspace, int& neighbors) const;
+
   const std::vector<Vec3>& points_;
   const KdTree& tree_;
   const std::vector<Vec3>* oriented_normals_;

@@ -1,6 +1,6 @@
 // EstimateNoise: the standard deviation of a scan's noise across its surface, in units of its
 // sampling distance d, from the residuals of local quadric fits. The MLS radius follows from it
-// (registration/mls_radius.h), so that MLS-SICP de-noises as much as the data need.
+// (geometry/mls_radius.h), so that MLS-SICP de-noises as much as the data need.
 #pragma once
 
 #include <cstdint>

@@ -8,6 +8,7 @@
 #include "mlsreg/core/stop_check.h"
 #include "mlsreg/geometry/depth_grid.h"
 #include "mlsreg/geometry/kd_tree.h"
+#include "mlsreg/geometry/mls_patches.h"
 #include "mlsreg/geometry/noise_estimate.h"
 #include "mlsreg/geometry/surface_analysis.h"
 
@@ -21,6 +22,10 @@ struct TargetOptions {
   std::size_t min_points = 10;
   // Threads of the build's per-point analysis (the target is the same for any count).
   int threads = 1;
+  // Build the MLS patches (geometry/mls_patches.h) at the automatic radius of the target's
+  // noise (geometry/mls_radius.h), so MLS correspondences against it cost about what closest
+  // points do.
+  bool build_mls_patches = true;
 };
 
 // Cloud + kd-tree + sampling distance + per-point surface properties. Immutable once built and
@@ -50,7 +55,9 @@ class Target {
   double build_seconds() const { return build_seconds_; }
   // The noise of the cloud, estimated once at build time (EstimateNoise).
   const NoiseEstimate& noise() const { return noise_; }
-  // Heap bytes held (points, normals, properties, index).
+  // The MLS surface as patches at the automatic radius of noise() (null when not built).
+  const MlsPatches* mls_patches() const { return mls_patches_ ? &*mls_patches_ : nullptr; }
+  // Heap bytes held (points, normals, properties, index, MLS patches).
   std::size_t MemoryBytes() const;
   // A lower bound of MemoryBytes() for a cloud of this shape, known before any build: points,
   // normals if any, the per-point normal, curvature and validity the build adds, and the depth
@@ -71,6 +78,7 @@ class Target {
   TargetOptions options_;
   double build_seconds_ = 0.0;
   NoiseEstimate noise_;
+  std::optional<MlsPatches> mls_patches_;
 };
 
 }  // namespace mlsreg

@@ -17,13 +17,14 @@
 namespace mlsreg {
 struct MlsParams {
   // Wendland support r (paper Table 2: 5 d, 8 d for high noise). Unset: auto, chosen from the
-  // noise estimated on the target and the source (registration/mls_radius.h).
+  // noise estimated on the target and the source (geometry/mls_radius.h).
   std::optional<double> radius_d;
   int polynomial_degree = 3;  // paper Table 2: g = 3
   int max_iterations = 20;    // paper Table 2
   bool warm_start = true;     // start each projection from the previous one's tangent plane
   // Queries with < 3 target samples within r (see FarQueryPolicy).
   FarQueryPolicy far_queries = FarQueryPolicy::kSeedUntilConverged;
+  MlsProjectionKind projection = MlsProjectionKind::kPatchesThenExact;
 };
 
 struct GicpParams {
@@ -55,6 +56,7 @@ enum class CoarsePhaseFilters {
 const EnumNames& CoarsePhaseFiltersNames();
 const EnumNames& FarQueryPolicyNames();
 const EnumNames& SicpMetricNames();
+const EnumNames& MlsProjectionKindNames();
 
 struct FilterParams {
   double min_normal_dot = 0.7;        // tau_N; <= -1 disables

@@ -1,0 +1,91 @@
+// MlsPatches: the target's MLS surface precomputed as overlapping polynomial patches, so that an
+// MLS correspondence costs a few nearest-neighbour lookups instead of Algorithm 1's iterated
+// radius searches and fits.
+//
+// Built once per target and radius r:
+//   - anchors: one target sample per cell of a voxel grid of edge h = 0.5 r (the sample nearest
+//     the cell's centre);
+//   - each anchor is projected onto the MLS surface by the exact Algorithm 1 (MlsProjector), and
+//     the fit of its final iteration is kept: the reference plane (origin, u, v, n) and the
+//     cubic height field over it, fitted with the Wendland weights of radius r. A patch is
+//     therefore exactly the local MLS surface at its anchor, with the same de-noising.
+// A query q is projected vertically onto each of the k patches whose anchors lie nearest to a
+// point near q (first q itself, then q's first estimate on the surface; a warm start supplies a
+// point already on it), and the k surface points and normals are blended with Wendland weights
+// that fall to zero at the (k+1)-th anchor: a partition of unity, continuous in q.
+// Departure from the paper: Algorithm 1 refits at the iterate; the patches refit only at anchors
+// (see the README's departures). A plane is reproduced exactly.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <memory>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "mlsreg/core/point_cloud.h"
+#include "mlsreg/core/stop_check.h"
+#include "mlsreg/geometry/kd_tree.h"
+#include "mlsreg/geometry/mls_projector.h"
+
+namespace mlsreg {
+
+class MlsPatches {
+ public:
+  // Anchor spacing h as a fraction of r, and the patches blended per query.
+  static constexpr double kAnchorSpacingPerRadius = 0.5;
+  static constexpr int kBlendedPatches = 4;
+
+  // `points`, `tree` and `oriented_normals` (may be null: output normals then have an arbitrary
+  // but consistent sign per query) must outlive the patches; `mls` as for MlsProjector.
+  // CANCELLED when `should_stop` says stop; FAILED_PRECONDITION when no anchor could be fitted.
+  static absl::StatusOr<MlsPatches> Build(const std::vector<Vec3>& points, const KdTree& tree,
+                                          const MlsOptions& mls,
+                                          const std::vector<Vec3>* oriented_normals, int threads,
+                                          const StopCheck& should_stop = {});
+
+  // The MLS projection of `query`. With `seed_far_queries`, a query farther than r from every
+  // anchor is replaced by its nearest target sample (seeded_from_nearest_sample); otherwise it
+  // fails with kTooFewNeighbors. Allocation-free and thread-safe.
+  MlsProjection Project(const Vec3& query, bool seed_far_queries) const;
+  // The same, with the patches chosen around `near`, a point already close to the surface (a
+  // warm start: the query on its previous projection's tangent plane). One blend instead of two.
+  MlsProjection ProjectNear(const Vec3& query, const Vec3& near, bool seed_far_queries) const;
+
+  double radius() const { return mls_.radius; }
+  int polynomial_degree() const { return mls_.polynomial_degree; }
+  const MlsOptions& mls_options() const { return mls_; }
+  std::size_t size() const { return patches_.size(); }
+  std::size_t MemoryBytes() const;
+
+  MlsPatches(MlsPatches&&) noexcept;
+  MlsPatches& operator=(MlsPatches&&) noexcept;
+  ~MlsPatches();
+
+ private:
+  struct Patch {
+    Vec3 origin, u, v, n;                 // the reference plane, (u, v, n) right-handed
+    std::array<double, 10> coefficients;  // HeightField monomials over (x, y) / r, heights / r
+    double surface_variation;
+  };
+  // One blend: the k patches nearest `near` evaluated at `query`.
+  struct Blend {
+    bool ok = false;
+    double nearest_distance = 0.0;
+    MlsProjection projection;
+  };
+
+  MlsPatches(const std::vector<Vec3>& points, const KdTree& tree, const MlsOptions& mls);
+  Blend BlendAt(const Vec3& query, const Vec3& near) const;
+  MlsProjection Finish(const Vec3& query, const Vec3& near, bool seed_far_queries,
+                       int blends) const;
+
+  const std::vector<Vec3>* points_;
+  const KdTree* tree_;
+  MlsOptions mls_;
+  std::vector<Patch> patches_;
+  std::vector<Vec3> anchors_;  // each patch's projected anchor, indexed by anchor_tree_
+  std::unique_ptr<KdTree> anchor_tree_;
+};
+
+}  // namespace mlsreg

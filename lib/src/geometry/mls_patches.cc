@@ -1,0 +1,218 @@
+#include "mlsreg/geometry/mls_patches.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdint>
+#include <unordered_map>
+
+#include "mlsreg/core/parallel_for.h"
+#include "mlsreg/geometry/wendland.h"
+
+namespace mlsreg {
+namespace {
+
+// A voxel of the anchor grid, and the sample nearest its centre so far.
+struct CellKey {
+  std::int64_t x, y, z;
+  bool operator==(const CellKey&) const = default;
+};
+struct CellKeyHash {
+  std::size_t operator()(const CellKey& k) const {
+    std::uint64_t h = static_cast<std::uint64_t>(k.x) * 0x9E3779B97F4A7C15ull;
+    h ^= static_cast<std::uint64_t>(k.y) * 0xC2B2AE3D27D4EB4Full + (h << 6) + (h >> 2);
+    h ^= static_cast<std::uint64_t>(k.z) * 0x165667B19E3779F9ull + (h << 6) + (h >> 2);
+    return static_cast<std::size_t>(h);
+  }
+};
+struct CellRepresentative {
+  std::uint32_t index;
+  double distance_squared;
+};
+
+// One sample per occupied voxel of edge `h`: the one nearest the voxel's centre (lowest index on
+// ties), in ascending index order.
+std::vector<std::uint32_t> VoxelRepresentatives(const std::vector<Vec3>& points, double h) {
+  std::unordered_map<CellKey, CellRepresentative, CellKeyHash> cells;
+  cells.reserve(points.size() / 4 + 1);
+  const double inv_h = 1.0 / h;
+  for (std::uint32_t i = 0; i < points.size(); ++i) {
+    const Vec3 scaled = points[i] * inv_h;
+    const CellKey key{static_cast<std::int64_t>(std::floor(scaled.x())),
+                      static_cast<std::int64_t>(std::floor(scaled.y())),
+                      static_cast<std::int64_t>(std::floor(scaled.z()))};
+    const Vec3 centre = (Vec3(key.x, key.y, key.z) + Vec3::Constant(0.5)) * h;
+    const double d2 = (points[i] - centre).squaredNorm();
+    auto [it, inserted] = cells.try_emplace(key, CellRepresentative{i, d2});
+    if (!inserted && d2 < it->second.distance_squared) it->second = {i, d2};
+  }
+  std::vector<std::uint32_t> representatives;
+  representatives.reserve(cells.size());
+  for (const auto& [key, cell] : cells) representatives.push_back(cell.index);
+  std::sort(representatives.begin(), representatives.end());
+  return representatives;
+}
+
+// The height field and its gradient at (x, y), monomials ordered as in HeightField.
+struct HeightWithGradient {
+  double value, dx, dy;
+};
+HeightWithGradient EvaluateHeight(const std::array<double, 10>& c, double x, double y) {
+  const double xx = x * x, xy = x * y, yy = y * y;
+  return {c[0] + c[1] * x + c[2] * y + c[3] * xx + c[4] * xy + c[5] * yy + c[6] * xx * x +
+              c[7] * xx * y + c[8] * x * yy + c[9] * yy * y,
+          c[1] + 2.0 * c[3] * x + c[4] * y + 3.0 * c[6] * xx + 2.0 * c[7] * xy + c[8] * yy,
+          c[2] + c[4] * x + 2.0 * c[5] * y + c[7] * xx + 2.0 * c[8] * xy + 3.0 * c[9] * yy};
+}
+
+}  // namespace
+
+MlsPatches::MlsPatches(const std::vector<Vec3>& points, const KdTree& tree, const MlsOptions& mls)
+    : points_(&points), tree_(&tree), mls_(mls) {}
+MlsPatches::MlsPatches(MlsPatches&&) noexcept = default;
+MlsPatches& MlsPatches::operator=(MlsPatches&&) noexcept = default;
+MlsPatches::~MlsPatches() = default;
+
+absl::StatusOr<MlsPatches> MlsPatches::Build(const std::vector<Vec3>& points, const KdTree& tree,
+                                             const MlsOptions& mls,
+                                             const std::vector<Vec3>* oriented_normals, int threads,
+                                             const StopCheck& should_stop) {
+  if (!(mls.radius > 0.0)) return absl::InvalidArgumentError("MLS patches need a radius > 0");
+  MlsPatches patches(points, tree, mls);
+  const std::vector<std::uint32_t> representatives =
+      VoxelRepresentatives(points, kAnchorSpacingPerRadius * mls.radius);
+  if (should_stop && should_stop()) return absl::CancelledError("MLS patch build cancelled");
+
+  // Each anchor projected by the exact Algorithm 1; its final fit becomes the patch.
+  MlsOptions exact = mls;
+  exact.seed_far_queries_from_nearest_sample = false;
+  const MlsProjector projector(points, tree, exact, oriented_normals);
+  std::vector<Patch> fitted(representatives.size());
+  std::vector<Vec3> projected(representatives.size());
+  std::vector<std::uint8_t> ok(representatives.size(), 0);
+  std::atomic<bool> stopped{false};
+  ParallelFor(representatives.size(), threads, [&](std::size_t begin, std::size_t end, int) {
+    MlsProjector::Workspace workspace;
+    StopPoller stop(should_stop, 64);
+    for (std::size_t i = begin; i < end; ++i) {
+      if (stopped.load(std::memory_order_relaxed) || stop.Poll()) {
+        stopped = true;
+        return;
+      }
+      const MlsProjection projection = projector.Project(points[representatives[i]], workspace);
+      if (projection.status != ProjectionStatus::kOk) continue;
+      const MlsLocalFit& fit = workspace.last_fit;
+      fitted[i] = Patch{fit.origin,       fit.frame.tangent_u,     fit.frame.tangent_v,
+                        fit.frame.normal, fit.height.coefficients, fit.frame.surface_variation};
+      projected[i] = projection.point;
+      ok[i] = 1;
+    }
+  });
+  if (stopped) return absl::CancelledError("MLS patch build cancelled");
+  for (std::size_t i = 0; i < representatives.size(); ++i) {
+    if (!ok[i]) continue;
+    patches.patches_.push_back(fitted[i]);
+    patches.anchors_.push_back(projected[i]);
+  }
+  if (patches.patches_.empty()) {
+    return absl::FailedPreconditionError(
+        "no MLS patch could be fitted: the cloud has no neighbourhood of 3 samples within r");
+  }
+  patches.patches_.shrink_to_fit();
+  patches.anchors_.shrink_to_fit();
+  patches.anchor_tree_ = std::make_unique<KdTree>(patches.anchors_);
+  return patches;
+}
+
+MlsPatches::Blend MlsPatches::BlendAt(const Vec3& query, const Vec3& near) const {
+  constexpr int k = kBlendedPatches;
+  std::uint32_t index[k + 1];
+  double distance_squared[k + 1];
+  const std::size_t found = anchor_tree_->Knn(near, k + 1, index, distance_squared);
+  Blend blend;
+  if (found == 0) return blend;
+  blend.nearest_distance = std::sqrt(distance_squared[0]);
+  // The weights fall to zero at the (k+1)-th anchor, so a patch enters and leaves the blend with
+  // weight 0 as the query moves.
+  const std::size_t used = std::min<std::size_t>(found, k);
+  const double support = found > static_cast<std::size_t>(k)
+                             ? std::sqrt(distance_squared[k])
+                             : 2.0 * std::sqrt(distance_squared[found - 1]) + mls_.radius;
+  const double r = mls_.radius, inv_r = 1.0 / r;
+  const Vec3& reference_normal = patches_[index[0]].n;
+  Vec3 point_sum = Vec3::Zero(), normal_sum = Vec3::Zero();
+  double variation_sum = 0.0, weight_sum = 0.0;
+  int contributing = 0;
+  for (std::size_t j = 0; j < used; ++j) {
+    double w = WendlandWeight(std::sqrt(distance_squared[j]), support);
+    if (j == 0 && !(w > 0.0)) w = 1.0;  // all k+1 equidistant: the nearest alone
+    if (!(w > 0.0)) continue;
+    const Patch& patch = patches_[index[j]];
+    const Vec3 local = (query - patch.origin) * inv_r;
+    const double x = local.dot(patch.u), y = local.dot(patch.v);
+    const HeightWithGradient h = EvaluateHeight(patch.coefficients, x, y);
+    Vec3 normal = (patch.n - h.dx * patch.u - h.dy * patch.v).normalized();
+    if (normal.dot(reference_normal) < 0.0) normal = -normal;
+    point_sum += w * (patch.origin + r * (x * patch.u + y * patch.v + h.value * patch.n));
+    normal_sum += w * normal;
+    variation_sum += w * patch.surface_variation;
+    weight_sum += w;
+    ++contributing;
+  }
+  MlsProjection& p = blend.projection;
+  p.point = point_sum / weight_sum;
+  p.normal = normal_sum.normalized();
+  p.curvature = variation_sum / weight_sum;
+  p.neighbors = contributing;
+  p.iterations = 1;
+  p.status = ProjectionStatus::kOk;
+  blend.ok = p.point.allFinite() && p.normal.allFinite();
+  return blend;
+}
+
+MlsProjection MlsPatches::Finish(const Vec3& query, const Vec3& near, bool seed_far_queries,
+                                 int blends) const {
+  Blend blend = BlendAt(query, near);
+  if (!blend.ok || blend.nearest_distance > mls_.radius) {
+    MlsProjection far;
+    far.status = ProjectionStatus::kTooFewNeighbors;
+    if (!seed_far_queries || tree_->size() == 0) return far;
+    // As Algorithm 1 does for such queries: project the nearest target sample instead.
+    const Vec3& sample = (*points_)[tree_->Nearest(query).index];
+    Blend seeded = BlendAt(sample, sample);
+    if (seeded.ok) {
+      const Blend refined = BlendAt(sample, seeded.projection.point);
+      if (refined.ok) seeded = refined;
+    }
+    if (!seeded.ok) return far;
+    seeded.projection.seeded_from_nearest_sample = true;
+    seeded.projection.iterations = 2;
+    return seeded.projection;
+  }
+  if (blends > 1) {
+    // Patches chosen around the first estimate, which lies on the surface: the right ones even
+    // when the query is well off the surface.
+    const Blend refined = BlendAt(query, blend.projection.point);
+    if (refined.ok) {
+      blend = refined;
+      blend.projection.iterations = 2;
+    }
+  }
+  return blend.projection;
+}
+
+MlsProjection MlsPatches::Project(const Vec3& query, bool seed_far_queries) const {
+  return Finish(query, query, seed_far_queries, 2);
+}
+
+MlsProjection MlsPatches::ProjectNear(const Vec3& query, const Vec3& near,
+                                      bool seed_far_queries) const {
+  return Finish(query, near, seed_far_queries, 1);
+}
+
+std::size_t MlsPatches::MemoryBytes() const {
+  return patches_.capacity() * sizeof(Patch) + anchors_.capacity() * sizeof(Vec3) +
+         (anchor_tree_ ? anchor_tree_->MemoryBytes() : 0);
+}
+
+}  // namespace mlsreg
