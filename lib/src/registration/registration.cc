@@ -86,8 +86,11 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
       return cancelled;
     }
     source_noise_d = noise.sigma_d;
-    resolved.mls.radius_d = SnapToTargetPatches(
-        target, options, AutoMlsRadiusD(std::max(target.noise().sigma_d, source_noise_d)));
+    resolved.mls.radius_d = AutoMlsRadiusD(std::max(target.noise().sigma_d, source_noise_d));
+    // Only methods that match by MLS use the patches (ST-SICP smooths by Algorithm 1).
+    if (method.make_finder == &internal::MakeMlsFinder) {
+      resolved.mls.radius_d = SnapToTargetPatches(target, options, *resolved.mls.radius_d);
+    }
     noise_seconds = internal::Seconds(phase);
   }
 
