@@ -1,12 +1,10 @@
 #include "mlsreg/geometry/mls_patches.h"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <unordered_map>
 
-#include "mlsreg/core/parallel_for.h"
 #include "mlsreg/geometry/wendland.h"
 
 namespace mlsreg {
@@ -90,25 +88,20 @@ absl::StatusOr<MlsPatches> MlsPatches::Build(const std::vector<Vec3>& points, co
   std::vector<Patch> fitted(representatives.size());
   std::vector<Vec3> projected(representatives.size());
   std::vector<std::uint8_t> ok(representatives.size(), 0);
-  std::atomic<bool> stopped{false};
-  ParallelFor(representatives.size(), threads, [&](std::size_t begin, std::size_t end, int) {
-    MlsProjector::Workspace workspace;
-    StopPoller stop(should_stop, 64);
-    for (std::size_t i = begin; i < end; ++i) {
-      if (stopped.load(std::memory_order_relaxed) || stop.Poll()) {
-        stopped = true;
-        return;
-      }
-      const MlsProjection projection = projector.Project(points[representatives[i]], workspace);
-      if (projection.status != ProjectionStatus::kOk) continue;
-      const MlsLocalFit& fit = workspace.last_fit;
-      fitted[i] = Patch{fit.origin,       fit.frame.tangent_u,     fit.frame.tangent_v,
-                        fit.frame.normal, fit.height.coefficients, fit.frame.surface_variation};
-      projected[i] = projection.point;
-      ok[i] = 1;
-    }
-  });
-  if (stopped) return absl::CancelledError("MLS patch build cancelled");
+  const bool finished = ProjectEach(
+      projector, representatives.size(),
+      [&](std::size_t i) -> const Vec3& { return points[representatives[i]]; },
+      [&](std::size_t i, const MlsProjection& projection,
+          const MlsProjector::Workspace& workspace) {
+        if (projection.status != ProjectionStatus::kOk) return;
+        const MlsLocalFit& fit = workspace.last_fit;
+        fitted[i] = Patch{fit.origin,       fit.frame.tangent_u,     fit.frame.tangent_v,
+                          fit.frame.normal, fit.height.coefficients, fit.frame.surface_variation};
+        projected[i] = projection.point;
+        ok[i] = 1;
+      },
+      threads, should_stop);
+  if (!finished) return absl::CancelledError("MLS patch build cancelled");
   for (std::size_t i = 0; i < representatives.size(); ++i) {
     if (!ok[i]) continue;
     patches.patches_.push_back(fitted[i]);

@@ -2,21 +2,19 @@
 // ICP step that filters their partners and runs the ADMM, and the composite methods built from
 // it (ST-SICP, CP-SICP+MLS-SICP).
 #include <algorithm>
-#include <atomic>
 #include <memory>
 
 #include "absl/strings/str_cat.h"
 #include "icp_loop.h"
 #include "method_runners.h"
-#include "mlsreg/core/parallel_for.h"
 #include "mlsreg/core/stop_check.h"
 #include "mlsreg/correspondences/correspondence_filter.h"
 #include "mlsreg/correspondences/correspondence_finders.h"
 #include "mlsreg/geometry/kd_tree.h"
 #include "mlsreg/geometry/mls_projector.h"
+#include "mlsreg/geometry/mls_radius.h"
 #include "mlsreg/geometry/sampling.h"
 #include "mlsreg/geometry/surface_analysis.h"
-#include "mlsreg/geometry/mls_radius.h"
 #include "mlsreg/solvers/sparse_icp.h"
 
 namespace mlsreg::internal {
@@ -173,20 +171,13 @@ absl::StatusOr<std::shared_ptr<const Target>> SmoothedTarget(const Target& targe
   const MlsProjector projector(target.points(), target.tree(), MlsOptionsFor(target, options));
   const std::vector<Vec3>& points = target.points();
   std::vector<Vec3> smoothed(points.size());
-  std::atomic<bool> stopped{false};
-  ParallelFor(points.size(), threads, [&](std::size_t begin, std::size_t end, int) {
-    MlsProjector::Workspace workspace;
-    StopPoller stop(should_stop, 64);
-    for (std::size_t i = begin; i < end; ++i) {
-      if (stopped.load(std::memory_order_relaxed) || stop.Poll()) {
-        stopped = true;
-        return;
-      }
-      const MlsProjection projection = projector.Project(points[i], workspace);
-      smoothed[i] = projection.status == ProjectionStatus::kOk ? projection.point : points[i];
-    }
-  });
-  if (stopped) return std::shared_ptr<const Target>();
+  const bool finished = ProjectEach(
+      projector, points.size(), [&](std::size_t i) -> const Vec3& { return points[i]; },
+      [&](std::size_t i, const MlsProjection& projection, const MlsProjector::Workspace&) {
+        smoothed[i] = projection.status == ProjectionStatus::kOk ? projection.point : points[i];
+      },
+      threads, should_stop);
+  if (!finished) return std::shared_ptr<const Target>();
   return target.WithMovedPoints(std::move(smoothed));
 }
 

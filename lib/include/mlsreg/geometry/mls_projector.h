@@ -2,11 +2,14 @@
 // exactly as the paper's Algorithm 1 (Dutta, Russig, Gumhold 2019, section 4).
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <string_view>
 #include <vector>
 
+#include "mlsreg/core/parallel_for.h"
 #include "mlsreg/core/point_cloud.h"
+#include "mlsreg/core/stop_check.h"
 #include "mlsreg/geometry/height_field_fit.h"
 #include "mlsreg/geometry/kd_tree.h"
 #include "mlsreg/geometry/weighted_covariance.h"
@@ -102,5 +105,26 @@ class MlsProjector {
   const std::vector<Vec3>* oriented_normals_;
   MlsOptions options_;
 };
+
+// Projects the points point_of(0), ..., point_of(count - 1) by `projector`, split over `threads`,
+// and hands each result to visit(i, projection, workspace) (the workspace holds the projection's
+// final fit). Asks `should_stop` every 64 points; false when it said stop.
+template <class PointOf, class Visit>
+bool ProjectEach(const MlsProjector& projector, std::size_t count, const PointOf& point_of,
+                 const Visit& visit, int threads, const StopCheck& should_stop) {
+  std::atomic<bool> stopped{false};
+  ParallelFor(count, threads, [&](std::size_t begin, std::size_t end, int) {
+    MlsProjector::Workspace workspace;
+    StopPoller stop(should_stop, 64);
+    for (std::size_t i = begin; i < end; ++i) {
+      if (stopped.load(std::memory_order_relaxed) || stop.Poll()) {
+        stopped = true;
+        return;
+      }
+      visit(i, projector.Project(point_of(i), workspace), workspace);
+    }
+  });
+  return !stopped;
+}
 
 }  // namespace mlsreg
