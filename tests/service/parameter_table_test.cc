@@ -107,7 +107,7 @@ TEST(ParameterTableTest, MethodTableRowsAreCompleteAndNamesParse) {
 }
 
 // Each parameter set to a value other than its default crosses the wire unchanged, and one
-// outside its range is refused naming the wire field.
+// outside its range (an enum number the enum does not have) is refused naming the wire field.
 TEST(ParameterTableTest, EveryParameterCrossesTheWireAndOutOfRangeValuesNameTheWireField) {
   for (const ParameterSpec& spec : ParameterTable()) {
     SCOPED_TRACE(std::string(spec.name));
@@ -145,6 +145,16 @@ TEST(ParameterTableTest, EveryParameterCrossesTheWireAndOutOfRangeValuesNameTheW
       } else {
         p.GetReflection()->SetDouble(&p, f, spec.range.min - 1.0);
       }
+      auto refused = wire::OptionsFromProto(method, p);
+      ASSERT_FALSE(refused.ok());
+      EXPECT_EQ(refused.status().code(), absl::StatusCode::kInvalidArgument);
+      EXPECT_NE(refused.status().message().find("parameters." + std::string(spec.wire_field)),
+                std::string::npos)
+          << refused.status();
+    }
+    if (spec.type == ParameterType::kEnum) {  // a number the enum does not have
+      const auto* f = p.GetDescriptor()->FindFieldByName(std::string(spec.wire_field));
+      p.GetReflection()->SetEnumValue(&p, f, 99);
       auto refused = wire::OptionsFromProto(method, p);
       ASSERT_FALSE(refused.ok());
       EXPECT_EQ(refused.status().code(), absl::StatusCode::kInvalidArgument);

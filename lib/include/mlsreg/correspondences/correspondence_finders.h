@@ -39,7 +39,7 @@ enum class FarQueryPolicy { kSeedUntilConverged, kSeed, kDrop };
 // exact Algorithm 1 (the paper's reference: several radius searches and fits per query). The
 // default uses the patches until the registration first converges and the exact projection,
 // warm-started from them, for the fine phase: the exact method's accuracy at a fraction of its
-// cost (on the tuning split the patches alone lose 13 % of median accuracy at 2 d).
+// cost (on the tuning split the patches alone lose 10 % of median accuracy at 2 d).
 enum class MlsProjectionKind { kPatchesThenExact, kPatches, kExact };
 
 class MlsCorrespondenceFinder final : public CorrespondenceFinder {
