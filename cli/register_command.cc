@@ -43,12 +43,21 @@ Matrix4 Perturbed(const RegisterArgs& args, const PointCloud& source, const Matr
                         {args.perturb_angle, args.perturb_translation, args.perturb_seed});
 }
 
-int WriteJson(const RegisterArgs& args, const RegistrationOptions& options,
-              const RegistrationResult& result, const std::optional<PoseError>& error) {
-  if (args.json.empty()) return 0;
-  std::ofstream out(args.json);
-  out << ResultJson(MethodName(options.method), result, error).dump(2) << "\n";
-  if (!out) return Fail(absl::UnavailableError("cannot write --json file '" + args.json + "'"));
+// Exit code of a registration that ran but whose result did not verify (method auto).
+constexpr int kExitNotVerified = 4;
+
+// Writes --json, and returns the exit code of a finished registration.
+int Finish(const RegisterArgs& args, const RegistrationOptions& options,
+           const RegistrationResult& result, const std::optional<PoseError>& error) {
+  if (!args.json.empty()) {
+    std::ofstream out(args.json);
+    out << ResultJson(MethodName(options.method), result, error).dump(2) << "\n";
+    if (!out) return Fail(absl::UnavailableError("cannot write --json file '" + args.json + "'"));
+  }
+  if (result.auto_report && !result.auto_report->verified &&
+      result.termination != Termination::kCancelled) {
+    return kExitNotVerified;
+  }
   return 0;
 }
 
@@ -72,7 +81,7 @@ int RunRemote(const RegisterArgs& args, const RegistrationOptions& options,
   auto remote = (*client)->Register(args.target, source, initial, options, truth, on_progress);
   if (!remote.ok()) return Fail(remote.status());
   std::printf("%s", FormatResult(remote->result, remote->ground_truth_error).c_str());
-  return WriteJson(args, options, remote->result, remote->ground_truth_error);
+  return Finish(args, options, remote->result, remote->ground_truth_error);
 }
 
 int RunRegister(const RegisterArgs& args) {
@@ -116,14 +125,17 @@ int RunRegister(const RegisterArgs& args) {
     error = EvaluatePose(source->points, result->transform, *truth, result->sampling_distance);
   }
   std::printf("%s", FormatResult(*result, error).c_str());
-  return WriteJson(args, *options, *result, error);
+  return Finish(args, *options, *result, error);
 }
 
 }  // namespace
 
 CommandRunner AddRegisterCommand(CLI::App& app) {
   auto args = std::make_shared<RegisterArgs>();
-  CLI::App* cmd = app.add_subcommand("register", "register a source scan to a target scan");
+  CLI::App* cmd = app.add_subcommand(
+      "register",
+      "register a source scan to a target scan (exit 0: done; 1: failed; 2: bad arguments; 4: "
+      "method auto found no pose that verifies)");
   cmd->add_option("--source", args->source, "source cloud (PLY, PCD, XYZ/CSV)")->required();
   cmd->add_option("--target", args->target,
                   "target cloud (PLY, PCD, XYZ/CSV), or with --server the id of a cached target")

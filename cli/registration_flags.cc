@@ -1,25 +1,27 @@
 #include "cli/registration_flags.h"
 
+#include <utility>
+
 #include "absl/strings/str_cat.h"
 #include "mlsreg/registration/parameters.h"
 
 namespace mlsreg::cli {
 namespace {
 
+// The help section of each parameter group.
+constexpr std::pair<ParameterGroup, const char*> kGroupTitles[] = {
+    {kCommonParameters, "Registration"},
+    {kSparseIcpParameters, "Sparse ICP (auto, cp-sicp, mls-sicp, st-sicp, rc-*)"},
+    {kMlsParameters, "MLS (auto, mls-sicp, st-sicp, cp-sicp+mls-sicp)"},
+    {kFilterParameters, "Correspondence filters (Sparse ICP methods)"},
+    {kGicpParameters, "G-ICP"},
+    {kFgrParameters, "FGR"},
+    {kAutoParameters, "auto (global candidates and verification)"},
+};
+
 std::string GroupTitle(ParameterGroup group) {
-  switch (group) {
-    case kCommonParameters:
-      return "Registration";
-    case kSparseIcpParameters:
-      return "Sparse ICP (cp-sicp, mls-sicp, st-sicp, rc-*)";
-    case kMlsParameters:
-      return "MLS (mls-sicp, st-sicp, cp-sicp+mls-sicp)";
-    case kFilterParameters:
-      return "Correspondence filters (Sparse ICP methods)";
-    case kGicpParameters:
-      return "G-ICP";
-    case kFgrParameters:
-      return "FGR";
+  for (const auto& [g, title] : kGroupTitles) {
+    if (g == group) return title;
   }
   return "Registration";
 }

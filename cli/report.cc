@@ -18,12 +18,23 @@ nlohmann::json MatrixJson(const Matrix4& m) {
 }  // namespace
 
 std::string FormatIteration(const IterationReport& r) {
-  return absl::StrFormat(
-      "iter %3d  rmse %8.4f d  matched %5d  rejected normal %4d curvature %4d distance %4d  "
-      "invalid %4d  admm %2d  %7.3f s",
-      r.iteration, r.rmse_d, r.counts.matched, r.counts.rejected_normal,
-      r.counts.rejected_curvature, r.counts.rejected_distance, r.counts.invalid, r.admm_iterations,
-      r.elapsed_seconds);
+  std::string stage;
+  if (r.stage == Stage::kGlobal) {
+    return absl::StrFormat("[global] %d feature matches, candidates found  %7.3f s",
+                           r.counts.matched, r.elapsed_seconds);
+  }
+  if (r.stage == Stage::kCandidate) {
+    stage = absl::StrFormat("[candidate %d] ", r.candidate);
+  } else if (r.stage != Stage::kSingle) {
+    stage = absl::StrFormat("[%s] ", StageName(r.stage));
+  }
+  return stage +
+         absl::StrFormat(
+             "iter %3d  rmse %8.4f d  matched %5d  rejected normal %4d curvature %4d distance %4d  "
+             "invalid %4d  admm %2d  %7.3f s",
+             r.iteration, r.rmse_d, r.counts.matched, r.counts.rejected_normal,
+             r.counts.rejected_curvature, r.counts.rejected_distance, r.counts.invalid,
+             r.admm_iterations, r.elapsed_seconds);
 }
 
 std::string FormatResult(const RegistrationResult& result, const std::optional<PoseError>& error) {
@@ -42,6 +53,26 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
   for (int r = 0; r < 4; ++r) {
     out += absl::StrFormat("  % .9f % .9f % .9f % .9f\n", result.transform(r, 0),
                            result.transform(r, 1), result.transform(r, 2), result.transform(r, 3));
+  }
+  if (const std::optional<AutoReport>& a = result.auto_report; a && !a->candidates.empty()) {
+    out += absl::StrFormat(
+        "auto: %s: %.1f %% of the source on the target's MLS surface (RMSE %.3f d); candidate %d "
+        "of %zu chosen%s\n",
+        a->verified ? "verified" : "NOT VERIFIED (no candidate fits; do not trust the transform)",
+        100.0 * a->verification.inlier_fraction, a->verification.rmse_d, a->chosen,
+        a->candidates.size(), a->early_exit ? " (the start verified: no global stage)" : "");
+    out += absl::StrFormat(
+        "auto stages: start %.3f s, global %.3f s (%d feature matches), candidates %.3f s, final "
+        "%.3f s\n",
+        a->timings.start, a->timings.global, a->feature_matches, a->timings.candidates,
+        a->timings.final);
+    for (std::size_t k = 0; k < a->candidates.size(); ++k) {
+      const AutoCandidate& c = a->candidates[k];
+      out += absl::StrFormat(
+          "  candidate %zu %-6s  on surface %5.1f %%  RMSE %7.3f d  %3d its  %6.3f s%s\n", k,
+          CandidateOriginName(c.origin), 100.0 * c.score.inlier_fraction, c.score.rmse_d,
+          c.iterations, c.seconds, static_cast<int>(k) == a->chosen ? "  <- chosen" : "");
+    }
   }
   if (error) {
     out += absl::StrFormat(
@@ -79,6 +110,8 @@ nlohmann::json IterationJson(const IterationReport& r) {
           {"invalid", r.counts.invalid},
           {"admm_iterations", r.admm_iterations},
           {"elapsed_seconds", r.elapsed_seconds},
+          {"stage", std::string(StageName(r.stage))},
+          {"candidate", r.candidate},
           {"transform", MatrixJson(r.transform)}};
 }
 
@@ -104,6 +137,35 @@ nlohmann::json ResultJson(std::string_view method, const RegistrationResult& res
                         {"optimisation", result.timings.optimisation},
                         {"total", result.timings.total}}},
                       {"trace", trace}};
+  if (const std::optional<AutoReport>& a = result.auto_report) {
+    const auto score = [](const VerificationScore& v) {
+      return nlohmann::json{{"samples", v.samples},
+                            {"inliers", v.inliers},
+                            {"inlier_fraction", v.inlier_fraction},
+                            {"rmse_d", v.rmse_d}};
+    };
+    nlohmann::json candidates = nlohmann::json::array();
+    for (const AutoCandidate& c : a->candidates) {
+      candidates.push_back({{"origin", std::string(CandidateOriginName(c.origin))},
+                            {"start", MatrixJson(c.start)},
+                            {"refined", MatrixJson(c.refined)},
+                            {"feature_inliers", c.feature_inliers},
+                            {"iterations", c.iterations},
+                            {"score", score(c.score)},
+                            {"seconds", c.seconds}});
+    }
+    j["auto"] = {{"verified", a->verified},
+                 {"verification", score(a->verification)},
+                 {"chosen", a->chosen},
+                 {"early_exit", a->early_exit},
+                 {"feature_matches", a->feature_matches},
+                 {"candidates", candidates},
+                 {"stage_seconds",
+                  {{"start", a->timings.start},
+                   {"global", a->timings.global},
+                   {"candidates", a->timings.candidates},
+                   {"final", a->timings.final}}}};
+  }
   if (error) {
     j["ground_truth"] = {{"rmse_d", error->rmse_d},
                          {"success", error->success},

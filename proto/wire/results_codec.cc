@@ -14,6 +14,75 @@ Termination TerminationFromProto(v1::Termination t) {
       .value_or(Termination::kMaxIterations);
 }
 
+namespace {
+
+void ToProto(const VerificationScore& s, v1::VerificationScore* out) {
+  out->set_samples(s.samples);
+  out->set_inliers(s.inliers);
+  out->set_inlier_fraction(s.inlier_fraction);
+  out->set_rmse_d(s.rmse_d);
+}
+
+VerificationScore FromProto(const v1::VerificationScore& p) {
+  return {p.samples(), p.inliers(), p.inlier_fraction(), p.rmse_d()};
+}
+
+Matrix4 MatrixFromProto(const v1::Transform& t) {
+  Matrix4 m = Matrix4::Identity();
+  if (t.row_major_size() == 16) {
+    for (int i = 0; i < 16; ++i) m(i / 4, i % 4) = t.row_major(i);
+  }
+  return m;
+}
+
+void ToProto(const AutoReport& r, v1::AutoReport* out) {
+  for (const AutoCandidate& c : r.candidates) {
+    v1::AutoCandidate* p = out->add_candidates();
+    p->set_origin(static_cast<v1::CandidateOrigin>(
+        EnumToWire(CandidateOriginNames(), static_cast<int>(c.origin))));
+    wire::ToProto(c.start, p->mutable_start());
+    wire::ToProto(c.refined, p->mutable_refined());
+    p->set_feature_inliers(c.feature_inliers);
+    p->set_iterations(c.iterations);
+    ToProto(c.score, p->mutable_score());
+    p->set_seconds(c.seconds);
+  }
+  out->set_chosen(r.chosen);
+  out->set_verified(r.verified);
+  ToProto(r.verification, out->mutable_verification());
+  out->set_early_exit(r.early_exit);
+  out->set_feature_matches(r.feature_matches);
+  out->set_start_seconds(r.timings.start);
+  out->set_global_seconds(r.timings.global);
+  out->set_candidates_seconds(r.timings.candidates);
+  out->set_final_seconds(r.timings.final);
+}
+
+AutoReport FromProto(const v1::AutoReport& p) {
+  AutoReport r;
+  for (const v1::AutoCandidate& c : p.candidates()) {
+    AutoCandidate a;
+    a.origin = EnumFromWire(CandidateOriginNames(), c.origin(), CandidateOrigin::kStart, "origin")
+                   .value_or(CandidateOrigin::kStart);
+    a.start = MatrixFromProto(c.start());
+    a.refined = MatrixFromProto(c.refined());
+    a.feature_inliers = c.feature_inliers();
+    a.iterations = c.iterations();
+    a.score = FromProto(c.score());
+    a.seconds = c.seconds();
+    r.candidates.push_back(a);
+  }
+  r.chosen = p.chosen();
+  r.verified = p.verified();
+  r.verification = FromProto(p.verification());
+  r.early_exit = p.early_exit();
+  r.feature_matches = p.feature_matches();
+  r.timings = {p.start_seconds(), p.global_seconds(), p.candidates_seconds(), p.final_seconds()};
+  return r;
+}
+
+}  // namespace
+
 void ToProto(const IterationReport& r, v1::Progress* out) {
   out->set_iteration(r.iteration);
   ToProto(r.transform, out->mutable_transform());
@@ -27,6 +96,8 @@ void ToProto(const IterationReport& r, v1::Progress* out) {
   c->set_invalid(r.counts.invalid);
   out->set_admm_iterations(r.admm_iterations);
   out->set_elapsed_seconds(r.elapsed_seconds);
+  out->set_stage(static_cast<v1::Stage>(EnumToWire(StageNames(), static_cast<int>(r.stage))));
+  out->set_candidate(r.candidate);
 }
 
 IterationReport FromProto(const v1::Progress& p) {
@@ -44,6 +115,8 @@ IterationReport FromProto(const v1::Progress& p) {
   r.counts.invalid = p.counts().invalid();
   r.admm_iterations = p.admm_iterations();
   r.elapsed_seconds = p.elapsed_seconds();
+  r.stage = EnumFromWire(StageNames(), p.stage(), Stage::kSingle, "stage").value_or(Stage::kSingle);
+  r.candidate = p.candidate();
   return r;
 }
 
@@ -64,6 +137,7 @@ void ToProto(const RegistrationResult& r, v1::Result* out) {
   out->set_mls_radius_auto(r.mls_radius_auto);
   out->set_target_noise_sigma_d(r.target_noise_d);
   out->set_source_noise_sigma_d(r.source_noise_d);
+  if (r.auto_report) ToProto(*r.auto_report, out->mutable_auto_report());
 }
 
 RegistrationResult FromProto(const v1::Result& p) {
@@ -85,6 +159,7 @@ RegistrationResult FromProto(const v1::Result& p) {
   r.mls_radius_auto = p.mls_radius_auto();
   r.target_noise_d = p.target_noise_sigma_d();
   r.source_noise_d = p.source_noise_sigma_d();
+  if (p.has_auto_report()) r.auto_report = FromProto(p.auto_report());
   return r;
 }
 

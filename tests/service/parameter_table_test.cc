@@ -90,6 +90,8 @@ TEST(ParameterTableTest, EnumTablesMatchTheWireEnums) {
   ExpectEnumMatchesWire(MlsProjectionKindNames());
   ExpectEnumMatchesWire(CoarsePhaseFiltersNames());
   ExpectEnumMatchesWire(TerminationNames());
+  ExpectEnumMatchesWire(StageNames());
+  ExpectEnumMatchesWire(CandidateOriginNames());
 }
 
 TEST(ParameterTableTest, MethodTableRowsAreCompleteAndNamesParse) {
@@ -102,7 +104,7 @@ TEST(ParameterTableTest, MethodTableRowsAreCompleteAndNamesParse) {
     EXPECT_EQ(m.make_finder != nullptr, (m.parameter_groups & kSparseIcpParameters) != 0);
     EXPECT_EQ(wire::MethodFromProto(wire::MethodToProto(m.method)).value(), m.method);
   }
-  EXPECT_EQ(wire::MethodFromProto(v1::METHOD_UNSPECIFIED).value(), Method::kMlsSicp);
+  EXPECT_EQ(wire::MethodFromProto(v1::METHOD_UNSPECIFIED).value(), Method::kAuto);
   EXPECT_FALSE(ParseMethod("icp").ok());
 }
 

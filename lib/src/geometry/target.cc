@@ -27,6 +27,7 @@ absl::StatusOr<std::shared_ptr<const Target>> Target::WithMovedPoints(
   moved.normals.clear();
   TargetOptions options = options_;
   options.build_mls_patches = false;  // the smoothed copy is matched by closest points
+  options.build_global_features = false;
   absl::StatusOr<std::shared_ptr<Target>> target = BuildMutable(std::move(moved), options, {});
   if (!target.ok()) return target.status();
   (*target)->surface_.curvature = surface_.curvature;
@@ -78,6 +79,15 @@ absl::StatusOr<std::shared_ptr<Target>> Target::BuildMutable(PointCloud cloud,
     // against it then runs the exact Algorithm 1, which reports the same shortage per query.
     if (patches.ok()) target->mls_patches_ = *std::move(patches);
   }
+  if (options.build_global_features) {
+    const FeatureScale scale =
+        ChooseFeatureScale(target->cloud_.points, target->sampling_distance_);
+    std::optional<FeatureCloud> features =
+        BuildFeatureCloud(target->cloud_.points, *target->tree_, &target->surface_, 0.0,
+                          target->cloud_.viewpoint, scale, should_stop);
+    if (!features) return cancelled();
+    target->features_ = *std::move(features);
+  }
   if (target->cloud_.intrinsics) {
     auto grid = DepthGrid::Build(target->cloud_.points, *target->cloud_.intrinsics);
     if (!grid.ok()) return grid.status();
@@ -99,7 +109,8 @@ std::size_t Target::MemoryBytes() const {
          surface_.normals.capacity() * sizeof(Vec3) +
          surface_.curvature.capacity() * sizeof(double) + surface_.valid.capacity() +
          tree_->MemoryBytes() + (grid_ ? grid_->MemoryBytes() : 0) +
-         (mls_patches_ ? mls_patches_->MemoryBytes() : 0) + sizeof(Target);
+         (mls_patches_ ? mls_patches_->MemoryBytes() : 0) +
+         (features_ ? features_->MemoryBytes() : 0) + sizeof(Target);
 }
 
 }  // namespace mlsreg

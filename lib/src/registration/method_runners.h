@@ -52,6 +52,9 @@ inline RegistrationResult CancelledBeforeIterations(const Matrix4& initial, doub
   return result;
 }
 
+// `phase`, run after `total`, appended to it: pose, termination, iterations, trace and timings.
+void AppendPhase(RegistrationResult& total, RegistrationResult&& phase);
+
 // Correspondence policies (MethodSpec::make_finder).
 std::unique_ptr<CorrespondenceFinder> MakeClosestPointFinder(const Target& target,
                                                              const RegistrationOptions& options);
@@ -70,6 +73,8 @@ absl::StatusOr<RegistrationResult> RunSmoothedTargetSicp(const RegistrationProbl
 absl::StatusOr<RegistrationResult> RunCpThenMlsSicp(const RegistrationProblem& problem);
 absl::StatusOr<RegistrationResult> RunGeneralizedIcp(const RegistrationProblem& problem);
 absl::StatusOr<RegistrationResult> RunFastGlobalRegistration(const RegistrationProblem& problem);
+// auto: MLS-SICP from the start, else from global candidates, chosen by verification.
+absl::StatusOr<RegistrationResult> RunAuto(const RegistrationProblem& problem);
 
 }  // namespace internal
 }  // namespace mlsreg

@@ -13,10 +13,14 @@ using namespace internal;
 constexpr unsigned kSicpMethod =
     kCommonParameters | kSparseIcpParameters | kFilterParameters;  // any Sparse ICP method
 
-const std::array<MethodSpec, 8> kMethods = {{
+const std::array<MethodSpec, 9> kMethods = {{
+    {Method::kAuto, "auto", "AUTO",
+     "MLS-SICP from the start, else from global candidates, verified (the default)",
+     TargetRequirement::kAnyCloud, kSicpMethod | kMlsParameters | kAutoParameters, &MakeMlsFinder,
+     &RunAuto},
     {Method::kCpSicp, "cp-sicp", "CP_SICP", "Sparse ICP with closest-point correspondences",
      TargetRequirement::kAnyCloud, kSicpMethod, &MakeClosestPointFinder, &RunSparseIcp},
-    {Method::kMlsSicp, "mls-sicp", "MLS_SICP", "Sparse ICP with MLS correspondences (the default)",
+    {Method::kMlsSicp, "mls-sicp", "MLS_SICP", "Sparse ICP with MLS correspondences",
      TargetRequirement::kAnyCloud, kSicpMethod | kMlsParameters, &MakeMlsFinder, &RunSparseIcp},
     {Method::kStSicp, "st-sicp", "ST_SICP",
      "the target smoothed onto its own MLS surface, then CP-SICP", TargetRequirement::kAnyCloud,
@@ -44,7 +48,7 @@ const MethodSpec& SpecOf(Method method) {
   for (const MethodSpec& spec : kMethods) {
     if (spec.method == method) return spec;
   }
-  return kMethods[1];  // unreachable for a valid enum value
+  return kMethods[0];  // unreachable for a valid enum value
 }
 
 const EnumNames& MethodNames() {

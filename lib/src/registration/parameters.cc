@@ -99,7 +99,7 @@ constexpr ParameterRange kAny{};
 std::vector<ParameterSpec> MakeTable() {
   constexpr ParameterGroup common = kCommonParameters, sicp = kSparseIcpParameters,
                            mls = kMlsParameters, filter = kFilterParameters, gicp = kGicpParameters,
-                           fgr = kFgrParameters;
+                           fgr = kFgrParameters, automatic = kAutoParameters;
   return {
       Row<&O::num_samples>("num_samples", "samples", "num_samples", common,
                            kClosed(3, kMaxNumSamples), "random source samples"),
@@ -185,6 +185,19 @@ std::vector<ParameterSpec> MakeTable() {
       Row<&O::fgr, &FgrParams::samples>("fgr.samples", "fgr-samples", "fgr_samples", fgr,
                                         kClosed(10, kMaxFgrSamples),
                                         "FGR: samples per cloud with features"),
+      Row<&O::automatic, &AutoParams::candidates>(
+          "auto.candidates", "auto-candidates", "auto_candidates", automatic, kClosed(1, 32),
+          "auto: global candidate poses refined when the start does not verify"),
+      Row<&O::automatic, &AutoParams::accept_fraction>(
+          "auto.accept_fraction", "auto-accept", "auto_accept_fraction", automatic, kClosed(0, 1),
+          "auto: keep the start's result without a global stage when this share of the source "
+          "lies on the target's surface"),
+      Row<&O::automatic, &AutoParams::verified_fraction>(
+          "auto.verified_fraction", "auto-verified", "auto_verified_fraction", automatic,
+          kClosed(0, 1), "auto: the share of the source on the surface that counts as verified"),
+      Row<&O::automatic, &AutoParams::candidate_iterations>(
+          "auto.candidate_iterations", "auto-candidate-iterations", "auto_candidate_iterations",
+          automatic, kClosed(1, 1000), "auto: ICP iterations of each candidate's first refinement"),
   };
 }
 

@@ -25,6 +25,33 @@ std::string_view TerminationName(Termination termination) {
   return NameOf(TerminationNames(), termination);
 }
 
+const EnumNames& StageNames() {
+  static constexpr EnumValueName kValues[] = {
+      {static_cast<int>(Stage::kSingle), "single", "SINGLE"},
+      {static_cast<int>(Stage::kStart), "start", "START"},
+      {static_cast<int>(Stage::kGlobal), "global", "GLOBAL"},
+      {static_cast<int>(Stage::kCandidate), "candidate", "CANDIDATE"},
+      {static_cast<int>(Stage::kFinal), "final", "FINAL"},
+  };
+  static constexpr EnumNames kNames{"Stage", "STAGE_", kValues};
+  return kNames;
+}
+
+std::string_view StageName(Stage stage) { return NameOf(StageNames(), stage); }
+
+const EnumNames& CandidateOriginNames() {
+  static constexpr EnumValueName kValues[] = {
+      {static_cast<int>(CandidateOrigin::kStart), "start", "START"},
+      {static_cast<int>(CandidateOrigin::kGlobal), "global", "GLOBAL"},
+  };
+  static constexpr EnumNames kNames{"CandidateOrigin", "CANDIDATE_ORIGIN_", kValues};
+  return kNames;
+}
+
+std::string_view CandidateOriginName(CandidateOrigin origin) {
+  return NameOf(CandidateOriginNames(), origin);
+}
+
 namespace {
 
 // An automatic radius within kPatchRadiusTolerance of the one the target's patches were built

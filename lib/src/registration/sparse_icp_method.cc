@@ -3,6 +3,7 @@
 // it (ST-SICP, CP-SICP+MLS-SICP).
 #include <algorithm>
 #include <memory>
+#include <optional>
 
 #include "absl/strings/str_cat.h"
 #include "icp_loop.h"
@@ -182,6 +183,8 @@ absl::StatusOr<std::shared_ptr<const Target>> SmoothedTarget(const Target& targe
 }
 
 // Adds a later phase's result to an earlier one's: one trace, summed phase timings.
+}  // namespace
+
 void AppendPhase(RegistrationResult& total, RegistrationResult&& phase) {
   total.transform = phase.transform;
   total.converged = phase.converged;
@@ -193,8 +196,6 @@ void AppendPhase(RegistrationResult& total, RegistrationResult&& phase) {
   total.timings.matching += phase.timings.matching;
   total.timings.optimisation += phase.timings.optimisation;
 }
-
-}  // namespace
 
 SourceSamples SubsampleSource(const PointCloud& source, const RegistrationOptions& options,
                               RegistrationResult& result) {
@@ -251,7 +252,9 @@ absl::StatusOr<RegistrationResult> RunSparseIcp(const RegistrationProblem& probl
   const double analysis_radius = finder->analysis_radius() > 0.0
                                      ? finder->analysis_radius()
                                      : target.options().analysis_radius_d * d;
-  const KdTree source_tree(problem.source->points);
+  std::optional<KdTree> own_tree;
+  if (!problem.source_tree) own_tree.emplace(problem.source->points);
+  const KdTree& source_tree = problem.source_tree ? *problem.source_tree : *own_tree;
   SurfaceProperties surface = AnalyzeSurface(problem.source->points, source_tree, analysis_radius,
                                              problem.source->viewpoint, sampled.indices,
                                              problem.callbacks->should_stop, problem.threads);

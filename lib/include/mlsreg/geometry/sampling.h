@@ -19,4 +19,8 @@ double SamplingDistance(const std::vector<Vec3>& points, const KdTree& tree);
 // platform (std::mt19937_64 with our own bounded draw).
 std::vector<std::uint32_t> RandomSubsample(std::size_t size, std::size_t count, std::uint64_t seed);
 
+// One sample per occupied voxel of edge `h`: the one nearest the voxel's centre (lowest index on
+// ties), in ascending index order.
+std::vector<std::uint32_t> VoxelRepresentatives(const std::vector<Vec3>& points, double h);
+
 }  // namespace mlsreg

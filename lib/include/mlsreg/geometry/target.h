@@ -7,6 +7,7 @@
 #include "mlsreg/core/point_cloud.h"
 #include "mlsreg/core/stop_check.h"
 #include "mlsreg/geometry/depth_grid.h"
+#include "mlsreg/geometry/feature_cloud.h"
 #include "mlsreg/geometry/kd_tree.h"
 #include "mlsreg/geometry/mls_patches.h"
 #include "mlsreg/geometry/noise_estimate.h"
@@ -26,6 +27,9 @@ struct TargetOptions {
   // noise (geometry/mls_radius.h), so MLS correspondences against it cost about what closest
   // points do.
   bool build_mls_patches = true;
+  // Build the FPFH features of global registration (geometry/feature_cloud.h) at the scale
+  // chosen from d, so that registrations from an unknown start reuse them.
+  bool build_global_features = true;
 };
 
 // Cloud + kd-tree + sampling distance + per-point surface properties. Immutable once built and
@@ -57,7 +61,9 @@ class Target {
   const NoiseEstimate& noise() const { return noise_; }
   // The MLS surface as patches at the automatic radius of noise() (null when not built).
   const MlsPatches* mls_patches() const { return mls_patches_ ? &*mls_patches_ : nullptr; }
-  // Heap bytes held (points, normals, properties, index, MLS patches).
+  // The features of global registration (null when not built).
+  const FeatureCloud* features() const { return features_ ? &*features_ : nullptr; }
+  // Heap bytes held (points, normals, properties, index, MLS patches, features).
   std::size_t MemoryBytes() const;
   // A lower bound of MemoryBytes() for a cloud of this shape, known before any build: points,
   // normals if any, the per-point normal, curvature and validity the build adds, and the depth
@@ -79,6 +85,7 @@ class Target {
   double build_seconds_ = 0.0;
   NoiseEstimate noise_;
   std::optional<MlsPatches> mls_patches_;
+  std::optional<FeatureCloud> features_;
 };
 
 }  // namespace mlsreg

@@ -17,6 +17,10 @@
 namespace mlsreg {
 
 enum class Method {
+  // The default: MLS-SICP from the start pose; when its result does not verify against the
+  // target's MLS surface, MLS-SICP from global feature candidates, the best verified one kept.
+  // Reports every candidate and whether the result verified. Uses `auto` and the MLS-SICP groups.
+  kAuto,
   kCpSicp,   // Sparse ICP with closest-point correspondences (paper: CP-SICP)
   kMlsSicp,  // Sparse ICP with MLS correspondences (paper: MLS-SICP)
   // The target first projected onto its own MLS surface (de-noised; counted as preprocessing),
@@ -51,6 +55,7 @@ enum ParameterGroup : unsigned {
   kFilterParameters = 1u << 3,
   kGicpParameters = 1u << 4,
   kFgrParameters = 1u << 5,
+  kAutoParameters = 1u << 6,
 };
 
 class CorrespondenceFinder;

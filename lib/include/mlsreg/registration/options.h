@@ -33,6 +33,19 @@ struct GicpParams {
   double max_distance_d = 8.0;    // correspondence distance cap (Table 2: 8 d)
 };
 
+// Method `auto`: MLS-SICP from the caller's start, and when that does not verify, from global
+// candidates (registration/global_candidates.h), the winner chosen by verification
+// (registration/verification.h). Thresholds chosen on the tuning split (docs/evaluation.md).
+struct AutoParams {
+  int candidates = 4;  // global poses refined when the start does not verify
+  // The start's MLS-SICP result is kept without a global stage when at least this share of the
+  // source lies on the target's MLS surface.
+  double accept_fraction = 0.5;
+  // The result is "verified" when at least this share of the source lies on the surface.
+  double verified_fraction = 0.3;
+  int candidate_iterations = 15;  // the cheap refinement of each candidate (patches only)
+};
+
 struct FgrParams {
   // FPFH radius: paper Table 2 uses 30 d for real scans (LRF), 10-15 d for its synthetic set;
   // 30 d also did best on the dragon tuning split (16/20 successes vs 13/20 at 10 d).
@@ -68,7 +81,7 @@ struct FilterParams {
 };
 
 struct RegistrationOptions {
-  Method method = Method::kMlsSicp;
+  Method method = Method::kAuto;
   int num_samples = 2000;    // random source samples (paper: 1,000-2,000)
   std::uint64_t seed = 1;    // subsampling seed
   int max_iterations = 100;  // ICP iterations (paper Table 2)
@@ -109,6 +122,7 @@ struct RegistrationOptions {
   FilterParams filter;
   GicpParams gicp;
   FgrParams fgr;
+  AutoParams automatic;         // method auto
   int min_correspondences = 6;  // fewer accepted correspondences end the registration
 };
 

@@ -3,14 +3,28 @@
 #pragma once
 
 #include <functional>
+#include <optional>
 #include <string_view>
 #include <vector>
 
 #include "mlsreg/core/enum_names.h"
 #include "mlsreg/core/transform.h"
 #include "mlsreg/correspondences/correspondence_filter.h"
+#include "mlsreg/registration/verification.h"
 
 namespace mlsreg {
+
+// The stage of method auto an iteration belongs to (kSingle for every other method).
+enum class Stage {
+  kSingle,     // a method with one stage
+  kStart,      // auto: MLS-SICP from the caller's start
+  kGlobal,     // auto: global candidates from feature matches (one report, iteration 0)
+  kCandidate,  // auto: the cheap refinement of a global candidate (IterationReport::candidate)
+  kFinal,      // auto: the full refinement of the best candidate
+};
+std::string_view StageName(Stage stage);  // "single", "start", "global", "candidate", "final"
+const EnumNames& StageNames();            // wire enum "Stage"
+
 // Streamed once per ICP iteration.
 struct IterationReport {
   int iteration = 0;                        // 1-based
@@ -20,6 +34,8 @@ struct IterationReport {
   CorrespondenceCounts counts;
   int admm_iterations = 0;
   double elapsed_seconds = 0.0;  // since Register was called
+  Stage stage = Stage::kSingle;
+  int candidate = -1;  // auto: the candidate (index into AutoReport::candidates), else -1
 };
 
 enum class Termination {
@@ -40,6 +56,43 @@ struct PhaseTimings {
   double total = 0.0;
 };
 
+// Method auto: every pose it considered, how each verified, and which one won.
+enum class CandidateOrigin {
+  kStart,   // the caller's initial pose
+  kGlobal,  // a pose from global feature matching
+};
+std::string_view CandidateOriginName(CandidateOrigin origin);  // "start", "global"
+const EnumNames& CandidateOriginNames();                       // wire enum "CandidateOrigin"
+
+struct AutoCandidate {
+  CandidateOrigin origin = CandidateOrigin::kStart;
+  Matrix4 start = Matrix4::Identity();    // the pose refinement started from
+  Matrix4 refined = Matrix4::Identity();  // after its refinement
+  int feature_inliers = 0;                // kGlobal: feature matches the pose explains
+  int iterations = 0;                     // of its refinement
+  VerificationScore score;                // of `refined`
+  double seconds = 0.0;                   // its refinement and verification
+};
+
+struct AutoStageTimings {
+  double start = 0.0;       // MLS-SICP from the start, and its verification
+  double global = 0.0;      // source features, matching, RANSAC
+  double candidates = 0.0;  // cheap refinements and their verification
+  double final = 0.0;       // the full refinement of the winner
+};
+
+struct AutoReport {
+  std::vector<AutoCandidate> candidates;  // [0] is the start
+  int chosen = 0;                         // index of the winner
+  // The result explains enough of the source (AutoParams::verified_fraction). When false the
+  // transform is the best found but must not be trusted: no candidate fits.
+  bool verified = false;
+  VerificationScore verification;  // of the result
+  bool early_exit = false;         // the start verified well enough: no global stage ran
+  int feature_matches = 0;         // matches the global stage drew from
+  AutoStageTimings timings;
+};
+
 struct RegistrationResult {
   Matrix4 transform = Matrix4::Identity();  // maps source points into the target frame
   bool converged = false;
@@ -56,6 +109,7 @@ struct RegistrationResult {
   bool mls_radius_auto = false;
   double target_noise_d = 0.0;
   double source_noise_d = 0.0;
+  std::optional<AutoReport> auto_report;  // method auto only
 };
 
 struct RegistrationCallbacks {
