@@ -29,6 +29,8 @@ struct EvalArgs {
   double angle_deg = 0.0;
   double translation_d = 0.0;
   std::uint64_t perturb_seed = 1;
+  bool uniform_rotation = false;
+  double translation_max_d = 0.0;
   int jobs = HardwareThreads();
   int threads = 1;
   RegistrationFlags flags;
@@ -88,6 +90,13 @@ const char* kFixedColumns[] = {"manifest",
                                "trace_rmse_d",
                                "trace_elapsed_s",
                                "trace_error_d",
+                               "initial_rotation_error_deg",
+                               "verified",
+                               "auto_chosen",
+                               "auto_candidates",
+                               "auto_early_exit",
+                               "auto_start_fraction",
+                               "auto_fraction",
                                "label"};
 
 int RunEval(const EvalArgs& args) {
@@ -95,7 +104,8 @@ int RunEval(const EvalArgs& args) {
   if (!registration.ok()) return Fail(registration.status());
   EvaluationOptions options;
   options.registration = *registration;
-  options.perturbation = {args.angle_deg, args.translation_d, args.perturb_seed};
+  options.perturbation = {args.angle_deg, args.translation_d, args.perturb_seed,
+                          args.uniform_rotation, args.translation_max_d};
   options.jobs = args.jobs;
   options.threads = args.threads;
   options.methods.clear();
@@ -160,6 +170,17 @@ int RunEval(const EvalArgs& args) {
         f.push_back(TraceColumn(r, false));
         f.push_back(TraceColumn(r, true));
         f.push_back(JoinNumbers(o.trace_error_d));
+        f.push_back(absl::StrFormat("%.6g", o.initial_error.rotation_deg));
+        if (const std::optional<AutoReport>& a = r.auto_report; a && !a->candidates.empty()) {
+          f.push_back(a->verified ? "1" : "0");
+          f.push_back(absl::StrFormat("%d", a->chosen));
+          f.push_back(absl::StrFormat("%zu", a->candidates.size()));
+          f.push_back(a->early_exit ? "1" : "0");
+          f.push_back(absl::StrFormat("%.4f", a->candidates[0].score.inlier_fraction));
+          f.push_back(absl::StrFormat("%.4f", a->verification.inlier_fraction));
+        } else {
+          f.insert(f.end(), 6, "");
+        }
         rmse_by_method[o.method].push_back(o.error.rmse_d);
         time_by_method[o.method].push_back(r.timings.total);
         successes[o.method] += o.error.success;
@@ -224,6 +245,11 @@ CommandRunner AddEvalCommand(CLI::App& app) {
                   "and translate it by this many d in a seeded random direction")
       ->capture_default_str();
   cmd->add_option("--perturb-seed", args->perturb_seed, "perturbation seed")->capture_default_str();
+  cmd->add_flag("--perturb-uniform-rotation", args->uniform_rotation,
+                "rotate each start uniformly on SO(3) (any angle) instead of by --perturb-angle");
+  cmd->add_option("--perturb-translation-max", args->translation_max_d,
+                  "draw each translation's length uniformly between --perturb-translation and "
+                  "this (units of d)");
   cmd->add_option("--jobs", args->jobs, "registrations run in parallel")->capture_default_str();
   cmd->add_option("--threads", args->threads,
                   "threads inside each registration (jobs x threads <= cores; results do not "

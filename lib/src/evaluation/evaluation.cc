@@ -1,9 +1,12 @@
 #include "mlsreg/evaluation/evaluation.h"
 
 #include <atomic>
+#include <cmath>
 #include <map>
 #include <memory>
 #include <mutex>
+#include <numbers>
+#include <random>
 #include <thread>
 
 #include "absl/strings/str_cat.h"
@@ -111,12 +114,37 @@ ProblemOutcome RunOne(const RegistrationProblem& problem, std::size_t index, Met
 
 }  // namespace
 
+// The rotation angle of a rotation uniform on SO(3), from u uniform in [0, 1): its density is
+// (1 - cos a) / pi on [0, pi], so its distribution function (a - sin a) / pi is inverted by
+// bisection.
+static double UniformRotationAngleDeg(double u) {
+  double lo = 0.0, hi = std::numbers::pi;
+  for (int i = 0; i < 60; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    ((mid - std::sin(mid)) / std::numbers::pi < u ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi) * 180.0 / std::numbers::pi;
+}
+
 Matrix4 PerturbedStart(const PointCloud& source, const Matrix4& initial, double d,
                        const PerturbationProtocol& protocol, std::size_t index) {
-  if (protocol.angle_deg == 0.0 && protocol.translation_d == 0.0) return initial;
-  return RandomPerturbation(protocol.angle_deg, protocol.translation_d * d,
-                            TransformedCentroid(source, initial),
-                            protocol.seed * 1000003ULL + index) *
+  if (protocol.angle_deg == 0.0 && protocol.translation_d == 0.0 && !protocol.uniform_rotation) {
+    return initial;
+  }
+  const std::uint64_t seed = protocol.seed * 1000003ULL + index;
+  double angle_deg = protocol.angle_deg;
+  double translation_d = protocol.translation_d;
+  if (protocol.uniform_rotation || protocol.translation_max_d > protocol.translation_d) {
+    std::mt19937_64 rng(seed ^ 0x9E3779B97F4A7C15ULL);  // independent of the axis draws
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    const double u = unit(rng), v = unit(rng);
+    if (protocol.uniform_rotation) angle_deg = UniformRotationAngleDeg(u);
+    if (protocol.translation_max_d > protocol.translation_d) {
+      translation_d += v * (protocol.translation_max_d - protocol.translation_d);
+    }
+  }
+  return RandomPerturbation(angle_deg, translation_d * d, TransformedCentroid(source, initial),
+                            seed) *
          initial;
 }
 

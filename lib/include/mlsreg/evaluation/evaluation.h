@@ -18,10 +18,17 @@ namespace mlsreg {
 // its ground truth) and P_i a rotation of exactly angle_deg about a random axis through the
 // centroid of the source under B_i, followed by a translation of exactly translation_d * d in a
 // random direction. P_i is seeded by (seed, i), so every method starts from the same pose.
+//
+// Registration from any start uses two variants: with uniform_rotation the rotation is drawn
+// uniformly on SO(3) (any angle; angle_deg is ignored), and with translation_max_d >
+// translation_d the translation's length is drawn uniformly in [translation_d,
+// translation_max_d].
 struct PerturbationProtocol {
   double angle_deg = 0.0;
   double translation_d = 0.0;
   std::uint64_t seed = 1;
+  bool uniform_rotation = false;
+  double translation_max_d = 0.0;
 };
 
 // The start pose of the evaluation protocol, the one place it is written (`mlsreg register

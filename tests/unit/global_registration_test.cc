@@ -1,0 +1,252 @@
+// Registration from any start: the feature samples, RANSAC's global candidates, verification
+// against the target's MLS surface, and method auto (early exit near the truth, recovery from a
+// half-turn, "not verified" for a mismatched pair, cancellation in every stage).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "mlsreg/evaluation/evaluation.h"
+#include "mlsreg/evaluation/metrics.h"
+#include "mlsreg/geometry/feature_cloud.h"
+#include "mlsreg/geometry/sampling.h"
+#include "mlsreg/io/io.h"
+#include "mlsreg/io/manifest.h"
+#include "mlsreg/registration/global_candidates.h"
+#include "mlsreg/registration/registration.h"
+#include "mlsreg/registration/verification.h"
+#include "support/synthetic.h"
+
+namespace mlsreg {
+namespace {
+
+using testing::BumpyHeight;
+using testing::SampleBumpySurface;
+
+double RotationErrorDeg(const Matrix4& a, const Matrix4& b) {
+  const Eigen::Matrix3d r = a.topLeftCorner<3, 3>().transpose() * b.topLeftCorner<3, 3>();
+  return std::acos(std::clamp((r.trace() - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / std::numbers::pi;
+}
+
+PointCloud Transformed(const PointCloud& cloud, const Matrix4& m) {
+  PointCloud out = cloud;
+  for (Vec3& p : out.points) p = m.topLeftCorner<3, 3>() * p + m.topRightCorner<3, 1>();
+  return out;
+}
+
+struct BunnyPair {
+  PointCloud source;
+  std::shared_ptr<const Target> target;
+  Matrix4 truth;
+};
+
+const BunnyPair& Bunny() {  // bun000 -> bun045, the bundled scans
+  static const BunnyPair pair = [] {
+    const std::string dir = std::string(MLSREG_SOURCE_DIR) + "/data/bunny/";
+    auto manifest = ReadManifest(dir + "pairs.csv");
+    EXPECT_TRUE(manifest.ok());
+    BunnyPair p;
+    p.source = ReadPointCloud(dir + "bun000.ply").value();
+    p.target = Target::Build(ReadPointCloud(dir + "bun045.ply").value()).value();
+    p.truth = *manifest->problems[0].ground_truth;
+    return p;
+  }();
+  return pair;
+}
+
+TEST(FeatureCloudTest, LargeCloudsGetLargerVoxelsAndAtMostTheCapOfSamples) {
+  const PointCloud dense = SampleBumpySurface(60'000, -1.0, 1.0, 1, 0.0);
+  const KdTree tree(dense.points);
+  const double d = SamplingDistance(dense.points, tree);
+  const FeatureScale scale = ChooseFeatureScale(dense.points, d);
+  EXPECT_GT(scale.voxel, kFeatureVoxelD * d);  // 60k points give more than 2500 voxels at 3 d
+  EXPECT_LE(VoxelRepresentatives(dense.points, scale.voxel).size(), kMaxFeatureSamples);
+  EXPECT_DOUBLE_EQ(scale.feature_radius, kFeatureRadiusPerVoxel * scale.voxel);
+  auto features = BuildFeatureCloud(dense.points, tree, nullptr, 5 * d, std::nullopt, scale);
+  ASSERT_TRUE(features.has_value());
+  EXPECT_GT(features->size(), kMaxFeatureSamples / 2);
+  EXPECT_EQ(features->features.size(), features->size());
+  // Normals of the height field z = f(x, y) are close to the analytic ones.
+  for (std::size_t i = 0; i < features->size(); i += 97) {
+    const Vec3& p = features->points[i];
+    const double h = 1e-5;
+    const Vec3 analytic =
+        Vec3(-(BumpyHeight(p.x() + h, p.y()) - BumpyHeight(p.x() - h, p.y())) / (2 * h),
+             -(BumpyHeight(p.x(), p.y() + h) - BumpyHeight(p.x(), p.y() - h)) / (2 * h), 1.0)
+            .normalized();
+    EXPECT_GT(std::abs(features->normals[i].dot(analytic)), 0.98) << i;
+  }
+}
+
+TEST(FeatureCloudTest, TheTargetCachesItsFeaturesAndCountsTheirBytes) {
+  const Target& target = *Bunny().target;
+  ASSERT_NE(target.features(), nullptr);
+  EXPECT_GT(target.features()->size(), 500u);
+  TargetOptions without;
+  without.build_global_features = false;
+  auto plain = Target::Build(target.cloud(), without).value();
+  EXPECT_EQ(plain->features(), nullptr);
+  EXPECT_EQ(target.MemoryBytes() - plain->MemoryBytes(), target.features()->MemoryBytes());
+}
+
+// A half-turned copy of the bunny's target scan, registered to the scan it came from: the best
+// candidate is the truth to within a voxel, whatever the start.
+TEST(GlobalCandidatesTest, RansacFindsAHalfTurnFromFeaturesAlone) {
+  const Target& target = *Bunny().target;
+  const Matrix4 truth = RandomPerturbation(170.0, 0.05, Vec3::Zero(), 3);  // source -> target
+  const PointCloud source = Transformed(target.cloud(), truth.inverse());
+  const KdTree tree(source.points);
+  const FeatureScale scale = target.features()->scale;
+  auto features = BuildFeatureCloud(source.points, tree, nullptr, 5 * target.sampling_distance(),
+                                    std::nullopt, scale);
+  ASSERT_TRUE(features.has_value());
+  GlobalCandidateOptions options;
+  options.inlier_distance = 1.5 * scale.voxel;
+  const GlobalCandidates found = FindGlobalCandidates(*features, *target.features(), options);
+  ASSERT_FALSE(found.candidates.empty());
+  EXPECT_LE(found.candidates.size(), 4u);
+  EXPECT_GT(found.matches, 100);
+  const Matrix4& best = found.candidates.front().transform;
+  EXPECT_LT(RotationErrorDeg(best, truth), 3.0);
+  EXPECT_LT(EvaluatePose(source.points, best, truth, target.sampling_distance()).rmse_d,
+            scale.voxel / target.sampling_distance());
+  for (std::size_t k = 1; k < found.candidates.size(); ++k) {
+    EXPECT_LE(found.candidates[k].inliers, found.candidates[k - 1].inliers);
+  }
+}
+
+TEST(VerificationTest, TheTruthVerifiesAndAWrongPoseOrAnotherObjectDoesNot) {
+  const BunnyPair& bunny = Bunny();
+  const KdTree tree(bunny.source.points);
+  auto samples = SampleOrientedPoints(bunny.source.points, tree, nullptr,
+                                      5 * bunny.target->sampling_distance(), bunny.source.viewpoint,
+                                      bunny.target->features()->scale);
+  ASSERT_TRUE(samples.has_value());
+  const auto verify = [&](const Matrix4& pose) {
+    return VerifyAlignment(*bunny.target, samples->points, samples->normals, samples->oriented,
+                           pose, 0.1);
+  };
+  const VerificationScore right = verify(bunny.truth);
+  EXPECT_GT(right.inlier_fraction, 0.6);  // the two scans overlap by about two thirds
+  EXPECT_LT(right.rmse_d, 1.0);
+  const Vec3 centre = bunny.truth.topLeftCorner<3, 3>() * samples->points[0];
+  const VerificationScore turned = verify(RandomPerturbation(20.0, 0.0, centre, 5) * bunny.truth);
+  EXPECT_LT(turned.inlier_fraction, 0.25);
+  EXPECT_EQ(right.samples, static_cast<int>(samples->size()));
+
+  // A bumpy sheet as large as the bunny, laid through its middle, is mostly off its surface.
+  PointCloud sheet = SampleBumpySurface(20'000, -1.0, 1.0, 4, 0.0);
+  for (Vec3& p : sheet.points) p = 0.05 * p + bunny.target->points()[0];
+  const KdTree sheet_tree(sheet.points);
+  auto sheet_samples =
+      SampleOrientedPoints(sheet.points, sheet_tree, nullptr, 5 * bunny.target->sampling_distance(),
+                           std::nullopt, bunny.target->features()->scale);
+  const VerificationScore other =
+      VerifyAlignment(*bunny.target, sheet_samples->points, sheet_samples->normals, false,
+                      Matrix4::Identity(), 0.1);
+  EXPECT_LT(other.inlier_fraction, 0.25);
+}
+
+TEST(AutoMethodTest, NearTheTruthItReturnsMlsSicpsResultWithoutAGlobalStage) {
+  const BunnyPair& bunny = Bunny();
+  const Matrix4 start =
+      PerturbedStart(bunny.source, bunny.truth, bunny.target->sampling_distance(), {10.0, 10.0, 1});
+  RegistrationOptions options;
+  ASSERT_EQ(options.method, Method::kAuto);  // the default
+  auto automatic = Register(*bunny.target, bunny.source, start, options);
+  ASSERT_TRUE(automatic.ok()) << automatic.status();
+  options.method = Method::kMlsSicp;
+  auto mls = Register(*bunny.target, bunny.source, start, options);
+  ASSERT_TRUE(mls.ok());
+  ASSERT_TRUE(automatic->auto_report.has_value());
+  const AutoReport& report = *automatic->auto_report;
+  EXPECT_TRUE(report.early_exit);
+  EXPECT_TRUE(report.verified);
+  EXPECT_EQ(report.candidates.size(), 1u);
+  EXPECT_EQ(report.chosen, 0);
+  EXPECT_EQ(report.timings.global, 0.0);
+  EXPECT_TRUE(automatic->transform == mls->transform);
+  EXPECT_EQ(automatic->iterations, mls->iterations);
+  for (const IterationReport& r : automatic->trace) EXPECT_EQ(r.stage, Stage::kStart);
+  EXPECT_FALSE(mls->auto_report.has_value());
+}
+
+TEST(AutoMethodTest, FromAHalfTurnItFindsTheTruthAndSaysWhichCandidateWon) {
+  const BunnyPair& bunny = Bunny();
+  const Matrix4 start = PerturbedStart(bunny.source, bunny.truth, bunny.target->sampling_distance(),
+                                       {180.0, 30.0, 2});
+  std::vector<Stage> stages;
+  RegistrationCallbacks callbacks;
+  callbacks.on_iteration = [&](const IterationReport& r) {
+    if (stages.empty() || stages.back() != r.stage) stages.push_back(r.stage);
+  };
+  auto result = Register(*bunny.target, bunny.source, start, {}, callbacks);
+  ASSERT_TRUE(result.ok()) << result.status();
+  const PoseError error =
+      EvaluatePose(bunny.source.points, result->transform, bunny.truth, result->sampling_distance);
+  EXPECT_LT(error.rmse_d, 1.0);
+  EXPECT_LT(error.rotation_deg, 0.5);
+  const AutoReport& report = *result->auto_report;
+  EXPECT_FALSE(report.early_exit);
+  EXPECT_TRUE(report.verified);
+  ASSERT_GE(report.candidates.size(), 2u);
+  EXPECT_EQ(report.candidates[0].origin, CandidateOrigin::kStart);
+  EXPECT_LT(report.candidates[0].score.inlier_fraction, 0.5);  // MLS-SICP alone fails here
+  ASSERT_GT(report.chosen, 0);
+  EXPECT_EQ(report.candidates[report.chosen].origin, CandidateOrigin::kGlobal);
+  for (const AutoCandidate& c : report.candidates) {
+    EXPECT_LE(c.score.inlier_fraction, report.candidates[report.chosen].score.inlier_fraction);
+  }
+  EXPECT_GT(report.verification.inlier_fraction, 0.6);
+  EXPECT_GT(report.feature_matches, 50);
+  EXPECT_GT(report.timings.global, 0.0);
+  EXPECT_GT(report.timings.final, 0.0);
+  // The stream shows the stages in order.
+  ASSERT_GE(stages.size(), 4u);
+  EXPECT_EQ(stages.front(), Stage::kStart);
+  EXPECT_EQ(stages[1], Stage::kGlobal);
+  EXPECT_EQ(stages[2], Stage::kCandidate);
+  EXPECT_EQ(stages.back(), Stage::kFinal);
+  EXPECT_EQ(result->trace.back().stage, Stage::kFinal);
+  EXPECT_EQ(result->trace.back().candidate, report.chosen);
+}
+
+TEST(AutoMethodTest, AnotherObjectIsNotVerified) {
+  const BunnyPair& bunny = Bunny();
+  PointCloud sheet = SampleBumpySurface(20'000, -1.0, 1.0, 6, 0.0);
+  for (Vec3& p : sheet.points) p = 0.05 * p + bunny.target->points()[0];
+  auto result = Register(*bunny.target, sheet, Matrix4::Identity(), {});
+  ASSERT_TRUE(result.ok()) << result.status();
+  ASSERT_TRUE(result->auto_report.has_value());
+  EXPECT_FALSE(result->auto_report->verified);
+  EXPECT_LT(result->auto_report->verification.inlier_fraction,
+            RegistrationOptions().automatic.verified_fraction);
+  EXPECT_GT(result->auto_report->candidates.size(), 1u);  // it did look globally
+}
+
+// A stop requested in each stage ends the registration there: cancelled, with the report so far.
+TEST(AutoMethodTest, EveryStageCanBeCancelled) {
+  const BunnyPair& bunny = Bunny();
+  const Matrix4 start = PerturbedStart(bunny.source, bunny.truth, bunny.target->sampling_distance(),
+                                       {180.0, 30.0, 2});
+  for (Stage stop_at : {Stage::kStart, Stage::kGlobal, Stage::kCandidate, Stage::kFinal}) {
+    SCOPED_TRACE(std::string(StageName(stop_at)));
+    bool stop = false;
+    int reports_after_stop = 0;
+    RegistrationCallbacks callbacks;
+    callbacks.on_iteration = [&](const IterationReport& r) {
+      if (stop) ++reports_after_stop;
+      if (r.stage == stop_at) stop = true;
+    };
+    callbacks.should_stop = [&] { return stop; };
+    auto result = Register(*bunny.target, bunny.source, start, {}, callbacks);
+    ASSERT_TRUE(result.ok()) << result.status();
+    EXPECT_EQ(result->termination, Termination::kCancelled);
+    ASSERT_TRUE(result->auto_report.has_value());
+    EXPECT_FALSE(result->auto_report->verified);
+    EXPECT_LE(reports_after_stop, 1);
+  }
+}
+
+}  // namespace
+}  // namespace mlsreg
