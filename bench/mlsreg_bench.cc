@@ -2,14 +2,18 @@
 // Run: build/bench/mlsreg_bench  (report ratios between rows of one run; the machine is noisy).
 #include <benchmark/benchmark.h>
 
+#include <array>
 #include <memory>
 
+#include "mlsreg/geometry/feature_cloud.h"
 #include "mlsreg/geometry/mls_patches.h"
 #include "mlsreg/geometry/mls_projector.h"
 #include "mlsreg/geometry/sampling.h"
 #include "mlsreg/io/io.h"
 #include "mlsreg/io/manifest.h"
+#include "mlsreg/registration/global_candidates.h"
 #include "mlsreg/registration/registration.h"
+#include "support/synthetic.h"
 
 namespace mlsreg {
 namespace {
@@ -123,6 +127,7 @@ BENCHMARK(BM_TargetBuild)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 void BM_MlsSicpProjection(benchmark::State& state) {
   const BunnyPair& p = Pair();
   RegistrationOptions options;
+  options.method = Method::kMlsSicp;
   options.mls.projection = static_cast<MlsProjectionKind>(state.range(0));
   const Matrix4 initial =
       RandomPerturbation(10.0, 10.0 * p.target->sampling_distance(), Vec3::Zero(), 1) * p.truth;
@@ -136,7 +141,8 @@ void BM_MlsSicpProjection(benchmark::State& state) {
 }
 BENCHMARK(BM_MlsSicpProjection)->DenseRange(0, 2)->Unit(benchmark::kMillisecond);
 
-// Argument: index into AllMethods() (cp-sicp, mls-sicp, st-sicp, cp-sicp+mls-sicp, g-icp, fgr).
+// Argument: index into AllMethods() (auto, cp-sicp, mls-sicp, st-sicp, cp-sicp+mls-sicp, g-icp,
+// fgr).
 // One full registration from the evaluation protocol's start pose (10 degrees, 10 d from the
 // ground truth), 2,000 samples, paper parameters.
 void BM_Registration(benchmark::State& state) {
@@ -154,12 +160,77 @@ void BM_Registration(benchmark::State& state) {
   state.counters["iterations"] = iterations;
   state.SetLabel(std::string(MethodName(options.method)));
 }
-BENCHMARK(BM_Registration)->DenseRange(0, 5)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Registration)->DenseRange(0, 6)->Unit(benchmark::kMillisecond);
+
+// The global stage of method auto on one core: the source's voxel samples with normals and FPFH
+// features, feature matching against the target's cached features, RANSAC. Argument 0: the bunny
+// pair (40k points each); 1: 50k-point clouds (two samplings of a bumpy sheet, the source
+// turned by 120 degrees). Counter samples: source feature samples.
+struct GlobalProblem {
+  PointCloud source;
+  std::shared_ptr<const Target> target;
+};
+
+const GlobalProblem& GlobalStageProblem(int which) {
+  static const std::array<GlobalProblem, 2> problems = [] {
+    std::array<GlobalProblem, 2> out;
+    out[0] = {Pair().source, Pair().target};
+    const Matrix4 turn = RandomPerturbation(120.0, 0.3, Vec3::Zero(), 7);
+    PointCloud sheet = testing::SampleBumpySurface(50'000, -1.0, 1.0, 1, 0.002);
+    PointCloud source = testing::SampleBumpySurface(50'000, -1.0, 1.0, 2, 0.002);
+    for (Vec3& x : source.points) x = turn.topLeftCorner<3, 3>() * x + turn.topRightCorner<3, 1>();
+    out[1] = {std::move(source), *Target::Build(std::move(sheet))};
+    return out;
+  }();
+  return problems.at(static_cast<std::size_t>(which));
+}
+
+void BM_GlobalStage(benchmark::State& state) {
+  const GlobalProblem& p = GlobalStageProblem(static_cast<int>(state.range(0)));
+  const Target& target = *p.target;
+  const double d = target.sampling_distance();
+  const KdTree source_tree(p.source.points);  // built by every registration anyway
+  std::size_t samples = 0, candidates = 0;
+  for (auto _ : state) {
+    auto features = BuildFeatureCloud(p.source.points, source_tree, nullptr, 5.0 * d,
+                                      p.source.viewpoint, target.features()->scale);
+    GlobalCandidateOptions options;
+    options.inlier_distance = 1.5 * target.features()->scale.voxel;
+    const GlobalCandidates found = FindGlobalCandidates(*features, *target.features(), options);
+    samples = features->size();
+    candidates = found.candidates.size();
+    benchmark::DoNotOptimize(found);
+  }
+  state.counters["samples"] = static_cast<double>(samples);
+  state.counters["candidates"] = static_cast<double>(candidates);
+}
+BENCHMARK(BM_GlobalStage)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+// Method auto against MLS-SICP near the truth (argument 0: the protocol's 10 degrees / 10 d, where
+// auto should stop after its first stage) and from a half turn (1: the whole pipeline).
+void BM_AutoMethod(benchmark::State& state) {
+  const BunnyPair& p = Pair();
+  const bool far = state.range(0) == 1;
+  const Matrix4 initial = RandomPerturbation(far ? 180.0 : 10.0,
+                                             (far ? 30.0 : 10.0) * p.target->sampling_distance(),
+                                             Vec3::Zero(), 1) *
+                          p.truth;
+  const RegistrationOptions options;  // auto, the default
+  int candidates = 0;
+  for (auto _ : state) {
+    auto result = Register(*p.target, p.source, initial, options);
+    candidates = static_cast<int>(result->auto_report->candidates.size());
+    benchmark::DoNotOptimize(result);
+  }
+  state.counters["candidates"] = candidates;
+}
+BENCHMARK(BM_AutoMethod)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 // MLS-SICP on the same problem with 1 or 2 threads (argument): the speed-up of one registration.
 void BM_MlsSicpThreads(benchmark::State& state) {
   const BunnyPair& p = Pair();
-  const RegistrationOptions options;  // mls-sicp, defaults
+  RegistrationOptions options;  // mls-sicp, defaults
+  options.method = Method::kMlsSicp;
   const Matrix4 initial =
       RandomPerturbation(10.0, 10.0 * p.target->sampling_distance(), Vec3::Zero(), 1) * p.truth;
   const ExecutionOptions execution{static_cast<int>(state.range(0))};
@@ -214,6 +285,7 @@ void BM_DenseClusterSource(benchmark::State& state) {
   const BunnyPair& p = Pair();
   const PointCloud source = IdenticalCluster();
   RegistrationOptions options;
+  options.method = Method::kMlsSicp;
   options.num_samples = 40'000;
   options.max_iterations = 1;
   const bool cancel = state.range(0) == 1;

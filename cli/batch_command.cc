@@ -51,6 +51,7 @@ struct JobOutcome {
   std::optional<PoseError> pose_error;
   int iterations = 0, attempts = 0;
   double seconds = 0.0;
+  std::optional<bool> verified;  // method auto: whether the result verified
 };
 
 bool IsJsonl(const std::string& path) {
@@ -68,7 +69,8 @@ std::string CsvRow(const JobOutcome& o) {
                                 o.error.empty() ? FormatTransform(o.transform) : "",
                                 absl::StrFormat("%.4f", o.seconds),
                                 absl::StrFormat("%d", o.attempts),
-                                o.request_id};
+                                o.request_id,
+                                o.verified ? (*o.verified ? "1" : "0") : ""};
   for (std::string& s : f) s = CsvField(s);
   return absl::StrJoin(f, ",");
 }
@@ -89,6 +91,7 @@ std::string JsonRow(const JobOutcome& o) {
     }
     j["transform"] = t;
   }
+  if (o.verified) j["verified"] = *o.verified;
   if (o.pose_error) {
     j["rmse_d"] = o.pose_error->rmse_d;
     j["success"] = o.pose_error->success;
@@ -174,7 +177,7 @@ int RunBatch(const BatchArgs& args) {
   }
   if (!append && !IsJsonl(args.results)) {
     out << "id,status,target_id,rmse_d,success,iterations,termination,transform,seconds,"
-           "attempts,request_id\n";
+           "attempts,request_id,verified\n";
   }
   std::mutex mutex;
   std::atomic<std::size_t> next{0};
@@ -204,6 +207,7 @@ int RunBatch(const BatchArgs& args) {
           o.pose_error = r->ground_truth_error;
           o.attempts = r->attempts;
           o.request_id = r->request_id;
+          if (r->result.auto_report) o.verified = r->result.auto_report->verified;
         }
       }
       o.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -48,10 +48,11 @@ double Median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-std::string JoinNumbers(const std::vector<double>& values) {
+std::string JoinNumbers(const std::vector<double>& values,
+                        const absl::FormatSpec<double>& format = "%.5g") {
   std::vector<std::string> parts;
   parts.reserve(values.size());
-  for (double v : values) parts.push_back(absl::StrFormat("%.5g", v));
+  for (double v : values) parts.push_back(absl::StrFormat(format, v));
   return absl::StrJoin(parts, " ");
 }
 
@@ -91,12 +92,15 @@ const char* kFixedColumns[] = {"manifest",
                                "trace_elapsed_s",
                                "trace_error_d",
                                "initial_rotation_error_deg",
+                               "initial",
                                "verified",
                                "auto_chosen",
                                "auto_candidates",
                                "auto_early_exit",
                                "auto_start_fraction",
                                "auto_fraction",
+                               "auto_rmse_d",
+                               "auto_inlier_distance_d",
                                "label"};
 
 int RunEval(const EvalArgs& args) {
@@ -171,6 +175,9 @@ int RunEval(const EvalArgs& args) {
         f.push_back(TraceColumn(r, true));
         f.push_back(JoinNumbers(o.trace_error_d));
         f.push_back(absl::StrFormat("%.6g", o.initial_error.rotation_deg));
+        std::vector<double> initial;
+        for (int i = 0; i < 16; ++i) initial.push_back(o.initial(i / 4, i % 4));
+        f.push_back(JoinNumbers(initial, "%.10g"));
         if (const std::optional<AutoReport>& a = r.auto_report; a && !a->candidates.empty()) {
           f.push_back(a->verified ? "1" : "0");
           f.push_back(absl::StrFormat("%d", a->chosen));
@@ -178,8 +185,10 @@ int RunEval(const EvalArgs& args) {
           f.push_back(a->early_exit ? "1" : "0");
           f.push_back(absl::StrFormat("%.4f", a->candidates[0].score.inlier_fraction));
           f.push_back(absl::StrFormat("%.4f", a->verification.inlier_fraction));
+          f.push_back(absl::StrFormat("%.4f", a->verification.rmse_d));
+          f.push_back(absl::StrFormat("%.4f", a->verification.inlier_distance_d));
         } else {
-          f.insert(f.end(), 6, "");
+          f.insert(f.end(), 8, std::string());
         }
         rmse_by_method[o.method].push_back(o.error.rmse_d);
         time_by_method[o.method].push_back(r.timings.total);

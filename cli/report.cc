@@ -56,10 +56,11 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
   }
   if (const std::optional<AutoReport>& a = result.auto_report; a && !a->candidates.empty()) {
     out += absl::StrFormat(
-        "auto: %s: %.1f %% of the source on the target's MLS surface (RMSE %.3f d); candidate %d "
-        "of %zu chosen%s\n",
+        "auto: %s: %.1f %% of the source within %.1f d of the target's MLS surface (RMSE %.3f d); "
+        "candidate %d of %zu chosen%s\n",
         a->verified ? "verified" : "NOT VERIFIED (no candidate fits; do not trust the transform)",
-        100.0 * a->verification.inlier_fraction, a->verification.rmse_d, a->chosen,
+        100.0 * a->verification.inlier_fraction, a->verification.inlier_distance_d,
+        a->verification.rmse_d, a->chosen,
         a->candidates.size(), a->early_exit ? " (the start verified: no global stage)" : "");
     out += absl::StrFormat(
         "auto stages: start %.3f s, global %.3f s (%d feature matches), candidates %.3f s, final "
@@ -142,7 +143,8 @@ nlohmann::json ResultJson(std::string_view method, const RegistrationResult& res
       return nlohmann::json{{"samples", v.samples},
                             {"inliers", v.inliers},
                             {"inlier_fraction", v.inlier_fraction},
-                            {"rmse_d", v.rmse_d}};
+                            {"rmse_d", v.rmse_d},
+                            {"inlier_distance_d", v.inlier_distance_d}};
     };
     nlohmann::json candidates = nlohmann::json::array();
     for (const AutoCandidate& c : a->candidates) {

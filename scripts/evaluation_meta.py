@@ -3,7 +3,8 @@
 
 Usage: evaluation_meta.py --out meta.json --scan-log scan.log --wall scan=1.0 total=2.0 ...
                           --bunny-mesh PATH --meshes-dir DIR --notes docs/evaluation-notes.md
-The notes file holds two sections, "## Parameters" and "## Tuning split", copied verbatim.
+The notes file holds three sections, "## Parameters", "## Tuning split" and "## Registration from
+any start" (the figures of scripts/any-start.sh), copied verbatim.
 """
 import argparse
 import datetime
@@ -63,7 +64,8 @@ def notes(path):
             elif current:
                 sections[current] += line
     return {"parameters": sections.get("parameters", "").strip(),
-            "tuning": sections.get("tuning split", "").strip()}
+            "tuning": sections.get("tuning split", "").strip(),
+            "any_start": sections.get("registration from any start", "").strip()}
 
 
 def main():

@@ -467,7 +467,8 @@ def meta_section(meta):
         body = [[str(k)] + [fmt(v.get(c, "")) for c in cols] for k, v in sorted(meshes.items()) if isinstance(v, dict)]
         lines += ["", "Synthetic meshes:", ""] + table(["mesh"] + cols, body)
     lines.append("")
-    for key, title in (("parameters", "Parameters"), ("tuning", "Tuning split")):
+    for key, title in (("parameters", "Parameters"), ("tuning", "Tuning split"),
+                       ("any_start", "Registration from any start")):
         if meta.get(key):
             lines += ["## " + title, "", str(meta[key]).rstrip(), ""]
     return lines

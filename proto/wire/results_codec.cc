@@ -21,10 +21,11 @@ void ToProto(const VerificationScore& s, v1::VerificationScore* out) {
   out->set_inliers(s.inliers);
   out->set_inlier_fraction(s.inlier_fraction);
   out->set_rmse_d(s.rmse_d);
+  out->set_inlier_distance_d(s.inlier_distance_d);
 }
 
 VerificationScore FromProto(const v1::VerificationScore& p) {
-  return {p.samples(), p.inliers(), p.inlier_fraction(), p.rmse_d()};
+  return {p.samples(), p.inliers(), p.inlier_fraction(), p.rmse_d(), p.inlier_distance_d()};
 }
 
 Matrix4 MatrixFromProto(const v1::Transform& t) {

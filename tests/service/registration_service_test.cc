@@ -3,6 +3,7 @@
 // deadlines and admission control.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -90,7 +91,7 @@ TEST_F(RegistrationServiceTest, ResultIsBitIdenticalToTheLibraryAndProgressStrea
 
 TEST_F(RegistrationServiceTest, InlineSourceAndDefaultsWork) {
   ASSERT_NO_FATAL_FAILURE(StartWith(TestConfig()));
-  // Method and parameters left unset: MLS-SICP with the library defaults; no request id given.
+  // Method and parameters left unset: auto with the library defaults; no request id given.
   auto messages = RegisterMessages("bun045", Bun000(), QuickOptions(), PerturbedStart(5, 5, 3));
   messages[0].mutable_header()->clear_parameters();
   messages[0].mutable_header()->set_method(v1::METHOD_UNSPECIFIED);
@@ -102,6 +103,49 @@ TEST_F(RegistrationServiceTest, InlineSourceAndDefaultsWork) {
   ASSERT_NE(outcome.result(), nullptr);
   EXPECT_EQ(outcome.result()->num_samples(), 500);
   EXPECT_FALSE(outcome.result()->has_ground_truth_error());
+  ASSERT_TRUE(outcome.result()->has_auto_report());  // unspecified is auto
+  EXPECT_TRUE(outcome.result()->auto_report().verified());
+}
+
+// Method auto over the wire from a half-turned start: the stages stream in order, and the result
+// carries every candidate, the winner and the verification, as the library computes them.
+TEST_F(RegistrationServiceTest, AutoFromAHalfTurnStreamsItsStagesAndReportsItsCandidates) {
+  ASSERT_NO_FATAL_FAILURE(StartWith(TestConfig()));
+  const Matrix4 initial = PerturbedStart(180.0, 30.0, 2);
+  RegistrationOptions options;
+  ASSERT_EQ(options.method, Method::kAuto);
+  auto messages = RegisterMessages("bun045", Bun000(), options, initial, Bun000ToBun045());
+  const RegisterOutcome outcome = RunRegister(client_, messages);
+  ASSERT_TRUE(outcome.status.ok()) << outcome.status.error_message();
+  auto local = Register(*Bun045Target(), Bun000(), initial, options);
+  ASSERT_TRUE(local.ok()) << local.status();
+  ASSERT_TRUE(local->auto_report.has_value());
+
+  std::vector<v1::Stage> stages;
+  for (const v1::Progress* p : outcome.progress()) {
+    if (stages.empty() || stages.back() != p->stage()) stages.push_back(p->stage());
+  }
+  ASSERT_GE(stages.size(), 3u);
+  EXPECT_EQ(stages.front(), v1::STAGE_START);
+  EXPECT_NE(std::find(stages.begin(), stages.end(), v1::STAGE_GLOBAL), stages.end());
+  EXPECT_EQ(stages.back(), v1::STAGE_FINAL);
+
+  const v1::Result& result = *outcome.result();
+  ASSERT_TRUE(result.has_auto_report());
+  const v1::AutoReport& report = result.auto_report();
+  EXPECT_TRUE(report.verified());
+  EXPECT_FALSE(report.early_exit());
+  EXPECT_EQ(report.chosen(), local->auto_report->chosen);
+  ASSERT_EQ(report.candidates_size(), static_cast<int>(local->auto_report->candidates.size()));
+  EXPECT_EQ(report.candidates(0).origin(), v1::CANDIDATE_ORIGIN_START);
+  EXPECT_EQ(report.candidates(report.chosen()).origin(), v1::CANDIDATE_ORIGIN_GLOBAL);
+  EXPECT_DOUBLE_EQ(report.verification().inlier_fraction(),
+                   local->auto_report->verification.inlier_fraction);
+  EXPECT_GT(report.global_seconds(), 0.0);
+  EXPECT_TRUE(FromWire(result.transform()) == local->transform);
+  ASSERT_TRUE(result.has_ground_truth_error());
+  EXPECT_TRUE(result.ground_truth_error().success());
+  EXPECT_LT(result.ground_truth_error().rotation_error_deg(), 0.5);
 }
 
 TEST_F(RegistrationServiceTest, BadRequestsNameTheFieldWhileAGoodOneRuns) {

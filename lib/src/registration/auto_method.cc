@@ -188,7 +188,7 @@ class AutoRegistration {
     if (!report_.candidates.empty() && result->termination != Termination::kCancelled) {
       const AutoCandidate& chosen = report_.candidates[report_.chosen];
       report_.verification = report_.chosen == 0 ? chosen.score : Verify(result->transform);
-      report_.verified = report_.verification.inlier_fraction >= params_.verified_fraction;
+      report_.verified = IsVerified(report_.verification, params_.verified_fraction);
     }
     result->auto_report = std::move(report_);
     return result;

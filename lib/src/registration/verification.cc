@@ -18,6 +18,7 @@ VerificationScore VerifyAlignment(const Target& target, const std::vector<Vec3>&
   const RigidTransform pose(Orthonormalize(transform));
   const MlsPatches* patches = target.mls_patches();
   VerificationScore score;
+  score.inlier_distance_d = limit / d;
   score.samples = static_cast<int>(points.size());
   double sum_squared = 0.0;
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -44,6 +45,11 @@ VerificationScore VerifyAlignment(const Target& target, const std::vector<Vec3>&
   if (score.samples > 0) score.inlier_fraction = double(score.inliers) / score.samples;
   if (score.inliers > 0) score.rmse_d = std::sqrt(sum_squared / score.inliers) / d;
   return score;
+}
+
+bool IsVerified(const VerificationScore& score, double min_inlier_fraction) {
+  return score.inliers > 0 && score.inlier_fraction >= min_inlier_fraction &&
+         score.rmse_d <= kMaxVerifiedRmsePerInlierDistance * score.inlier_distance_d;
 }
 
 }  // namespace mlsreg

@@ -15,7 +15,7 @@
 namespace mlsreg {
 
 struct GlobalCandidateOptions {
-  int max_candidates = 4;
+  int max_candidates = 8;
   int max_trials = 50'000;
   double confidence = 0.999;  // early exit once the best pose is this sure to have been drawn
   // Matches within this distance of each other under a pose are its inliers (absolute units).

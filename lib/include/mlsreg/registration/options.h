@@ -37,7 +37,7 @@ struct GicpParams {
 // candidates (registration/global_candidates.h), the winner chosen by verification
 // (registration/verification.h). Thresholds chosen on the tuning split (docs/evaluation.md).
 struct AutoParams {
-  int candidates = 4;  // global poses refined when the start does not verify
+  int candidates = 8;  // global poses refined when the start does not verify
   // The start's MLS-SICP result is kept without a global stage when at least this share of the
   // source lies on the target's MLS surface.
   double accept_fraction = 0.5;

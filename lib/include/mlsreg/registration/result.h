@@ -84,8 +84,9 @@ struct AutoStageTimings {
 struct AutoReport {
   std::vector<AutoCandidate> candidates;  // [0] is the start
   int chosen = 0;                         // index of the winner
-  // The result explains enough of the source (AutoParams::verified_fraction). When false the
-  // transform is the best found but must not be trusted: no candidate fits.
+  // The result explains enough of the source, tightly enough (IsVerified with
+  // AutoParams::verified_fraction). When false the transform is the best found but must not be
+  // trusted: no candidate fits.
   bool verified = false;
   VerificationScore verification;  // of the result
   bool early_exit = false;         // the start verified well enough: no global stage ran

@@ -24,7 +24,16 @@ struct VerificationScore {
   int inliers = 0;               // samples that agree
   double inlier_fraction = 0.0;  // inliers / samples: the score (share of the source explained)
   double rmse_d = 0.0;           // RMSE of the agreeing samples' distances, units of d
+  double inlier_distance_d = 0.0;  // the distance within which a sample agrees, units of d
 };
+
+// Residuals of a real fit concentrate near the surface; a chance overlap of two different shapes
+// spreads them across the band (a uniform spread has an RMS of 0.58 of its half-width).
+inline constexpr double kMaxVerifiedRmsePerInlierDistance = 0.4;
+
+// Whether a score says the pose is right: at least `min_inlier_fraction` of the source agrees,
+// and the agreeing samples' RMSE is at most kMaxVerifiedRmsePerInlierDistance of the band.
+bool IsVerified(const VerificationScore& score, double min_inlier_fraction);
 
 // Scores `transform` (source to target) by the source samples `points` with unit `normals`
 // (oriented toward the source's scanner when `oriented`). The target's MLS patches give the
