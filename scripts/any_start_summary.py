@@ -27,6 +27,8 @@ def read_runs(out):
             continue
         with open(path) as f:
             for row in csv.DictReader(f):
+                if "label" not in row:
+                    break  # not an `mlsreg eval` CSV
                 if row.get("status") != "ok":
                     row["rmse_d"] = "inf"
                 row["set"], row["sigma"], row["start"] = (row["label"].split(",") + ["", "", ""])[:3]

@@ -35,7 +35,7 @@ args=(--source data/bunny/bun000.ply --init "$GT" --gt "$GT" --perturb-angle 5 -
       --samples 1000 --json)
 "$MLSREG" register --server "$A" --target bun045 "${args[@]}" "$work/remote.json" > "$work/remote.txt"
 "$MLSREG" register --target data/bunny/bun045.ply "${args[@]}" "$work/local.json" > "$work/local.txt"
-iterations=$(grep -c "^iter " "$work/remote.txt")
+iterations=$(grep -c "^\[start\] iter " "$work/remote.txt")
 [ "$iterations" -ge 2 ] || fail "remote stream printed $iterations iterations"
 python3 - "$work/remote.json" "$work/local.json" <<'PY' || fail "remote and local transforms differ"
 import json, sys
@@ -47,7 +47,34 @@ for k in ("mls_radius_d", "mls_radius_auto", "target_noise_sigma_d", "source_noi
     assert r[k] == l[k], (k, r[k], l[k])
 assert r["mls_radius_auto"] and r["mls_radius_d"] == 5.0, r
 assert 0.0 < r["target_noise_sigma_d"] < 0.5, r
+# The default method is auto; near the truth its start verifies and no global stage runs.
+assert r["method"] == "auto" and l["method"] == "auto", (r["method"], l["method"])
+for j in (r, l):
+    assert j["auto"]["verified"] and j["auto"]["early_exit"], j["auto"]
+    assert len(j["auto"]["candidates"]) == 1 and j["auto"]["chosen"] == 0, j["auto"]
+    assert all(t["stage"] == "start" for t in j["trace"]), j["trace"][0]
+assert r["auto"]["verification"] == l["auto"]["verification"], (r["auto"], l["auto"])
 PY
+grep -q "^auto: verified: " "$work/remote.txt" || fail "no verification line: $(tail -5 "$work/remote.txt")"
+
+# Another object is not verified: exit code 4, "NOT VERIFIED", auto.verified false in --json.
+python3 - "$work/sheet.xyz" <<'PY'
+import math, random, sys
+random.seed(3)
+with open(sys.argv[1], "w") as f:
+    for _ in range(20000):  # a bumpy sheet about the bunny's size, through its middle
+        x, y = random.uniform(-0.05, 0.05), random.uniform(-0.05, 0.05)
+        z = 0.01 * math.sin(60 * x) * math.cos(40 * y)
+        f.write(f"{x - 0.02:.6f} {y + 0.1:.6f} {z:.6f}\n")
+PY
+status=0
+"$MLSREG" register --target data/bunny/bun045.ply --source "$work/sheet.xyz" --json "$work/sheet.json" \
+  > "$work/sheet.txt" 2>&1 || status=$?
+[ "$status" -eq 4 ] || fail "mismatched pair: exit $status, not 4: $(tail -5 "$work/sheet.txt")"
+grep -q "NOT VERIFIED" "$work/sheet.txt" || fail "mismatched pair: $(tail -5 "$work/sheet.txt")"
+grep -q "^\[global\] " "$work/sheet.txt" || fail "no global stage line: $(head -20 "$work/sheet.txt")"
+python3 -c "import json,sys; j=json.load(open(sys.argv[1])); assert not j['auto']['verified'], j['auto']; assert len(j['auto']['candidates']) > 1" "$work/sheet.json" \
+  || fail "mismatched pair: --json says verified"
 grep -q "MLS radius: 5.00 d (auto" "$work/remote.txt" || fail "no radius line: $(head -3 "$work/remote.txt")"
 "$MLSREG" targets get --server "$A" bun045 | grep -q "noise 0\." || fail "targets get shows no noise"
 

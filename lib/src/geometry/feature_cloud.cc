@@ -25,7 +25,7 @@ FeatureScale ChooseFeatureScale(const std::vector<Vec3>& points, double d) {
     // A surface's voxel count falls with the square of the voxel edge.
     voxel *= 1.05 * std::sqrt(static_cast<double>(count) / kMaxFeatureSamples);
   }
-  return {voxel, kFeatureRadiusPerVoxel * voxel};
+  return {voxel, kFeatureRadiusPerVoxel * voxel, 2 * kMaxFeatureSamples};
 }
 
 std::optional<FeatureCloud> SampleOrientedPoints(
@@ -33,9 +33,9 @@ std::optional<FeatureCloud> SampleOrientedPoints(
     double normal_radius, const std::optional<Vec3>& viewpoint, const FeatureScale& scale,
     const StopCheck& should_stop) {
   std::vector<std::uint32_t> samples = VoxelRepresentatives(points, scale.voxel);
-  if (samples.size() > 2 * kMaxFeatureSamples) {
+  if (samples.size() > scale.max_samples) {
     const std::vector<std::uint32_t> keep =
-        RandomSubsample(samples.size(), 2 * kMaxFeatureSamples, kSubsetSeed);
+        RandomSubsample(samples.size(), scale.max_samples, kSubsetSeed);
     for (std::size_t k = 0; k < keep.size(); ++k) samples[k] = samples[keep[k]];
     samples.resize(keep.size());
   }

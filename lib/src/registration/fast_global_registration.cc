@@ -3,12 +3,12 @@
 // initial transform, so it keeps its own loop (no convergence test) on the shared helpers.
 #include <Eigen/Cholesky>
 #include <cmath>
+#include <optional>
 #include <random>
 
 #include "method_runners.h"
-#include "mlsreg/geometry/fpfh.h"
-#include "mlsreg/geometry/sampling.h"
-#include "mlsreg/geometry/surface_analysis.h"
+#include "mlsreg/geometry/feature_cloud.h"
+#include "mlsreg/registration/global_candidates.h"
 #include "mlsreg/solvers/rigid_motion.h"
 
 namespace mlsreg {
@@ -24,52 +24,21 @@ constexpr int kIterations = 64;
 constexpr double kDivisionFactor = 1.4;
 constexpr double kMaxCorrespondenceDistance = 0.025;  // in units of the normalisation scale
 
-// Random samples of a cloud with normals and FPFH features.
-struct FeaturedSamples {
-  std::vector<Vec3> points;
-  std::vector<FpfhFeature> features;
-};
-
-// `stopped` is set when `should_stop` said stop (the samples are then unusable).
-FeaturedSamples Describe(const PointCloud& cloud, const KdTree& tree, double normal_radius,
-                         double feature_radius, int count, std::uint64_t seed,
-                         const StopCheck& should_stop, bool& stopped) {
-  FeaturedSamples out;
-  const std::vector<std::uint32_t> indices =
-      RandomSubsample(cloud.size(), static_cast<std::size_t>(count), seed);
-  const SurfaceProperties surface =
-      AnalyzeSurface(cloud.points, tree, normal_radius, cloud.viewpoint, indices, should_stop);
-  if (surface.stopped) {
-    stopped = true;
-    return out;
-  }
-  std::vector<Vec3> normals;
-  for (std::size_t k = 0; k < indices.size(); ++k) {
-    if (!surface.valid[k]) continue;
-    out.points.push_back(cloud.points[indices[k]]);
-    normals.push_back(surface.normals[k]);
-  }
-  const KdTree sample_tree(out.points);
-  out.features = ComputeFpfh(out.points, normals, sample_tree, feature_radius, should_stop);
-  stopped = out.features.size() != out.points.size();
-  return out;
+// The scale of the features FGR matches: voxel samples at a fifth of the FPFH radius (FGR's and
+// Open3D's ratio), at most `samples` of them. The target's cached features are reused when they
+// have this scale.
+FeatureScale FgrScale(const FgrParams& p, double d) {
+  FeatureScale scale;
+  scale.feature_radius = p.feature_radius_d * d;
+  scale.voxel = scale.feature_radius / kFeatureRadiusPerVoxel;
+  scale.max_samples = static_cast<std::size_t>(p.samples);
+  return scale;
 }
 
-std::size_t NearestFeature(const FpfhFeature& f, const std::vector<FpfhFeature>& all) {
-  std::size_t best = 0;
-  float best_d2 = std::numeric_limits<float>::max();
-  for (std::size_t j = 0; j < all.size(); ++j) {
-    float d2 = 0.0f;
-    for (int b = 0; b < 33; ++b) {
-      const float diff = f[b] - all[j][b];
-      d2 += diff * diff;
-    }
-    if (d2 < best_d2) {
-      best_d2 = d2;
-      best = j;
-    }
-  }
-  return best;
+bool SameScale(const FeatureScale& a, const FeatureScale& b) {
+  return std::abs(a.voxel - b.voxel) <= 1e-9 * a.voxel &&
+         std::abs(a.feature_radius - b.feature_radius) <= 1e-9 * a.feature_radius &&
+         a.max_samples == b.max_samples;
 }
 
 }  // namespace
@@ -88,31 +57,31 @@ absl::StatusOr<RegistrationResult> internal::RunFastGlobalRegistration(
 
   // Preprocessing: features of both clouds.
   Clock::time_point phase = Clock::now();
-  const KdTree source_tree(source.points);
+  std::optional<KdTree> own_source_tree;
+  if (!problem.source_tree) own_source_tree.emplace(source.points);
+  const KdTree& source_tree = problem.source_tree ? *problem.source_tree : *own_source_tree;
   const double normal_radius = target.options().analysis_radius_d * d;
-  bool stopped = false;
-  const FeaturedSamples s = Describe(source, source_tree, normal_radius, p.feature_radius_d * d,
-                                     p.samples, options.seed, callbacks.should_stop, stopped);
-  const FeaturedSamples t =
-      stopped ? FeaturedSamples{}
-              : Describe(target.cloud(), target.tree(), normal_radius, p.feature_radius_d * d,
-                         p.samples, options.seed + 1, callbacks.should_stop, stopped);
-  result.num_samples = static_cast<int>(s.points.size());
+  const FeatureScale scale = FgrScale(p, d);
+  const std::optional<FeatureCloud> s = BuildFeatureCloud(
+      source.points, source_tree, nullptr, normal_radius, source.viewpoint, scale,
+      callbacks.should_stop);
+  std::optional<FeatureCloud> own_target;
+  const FeatureCloud* t = target.features();
+  if (s && (!t || !SameScale(t->scale, scale))) {
+    own_target = BuildFeatureCloud(target.points(), target.tree(), &target.surface(), 0.0,
+                                   target.cloud().viewpoint, scale, callbacks.should_stop);
+    t = own_target ? &*own_target : nullptr;
+  }
+  bool stopped = !s || !t;
+  result.num_samples = s ? static_cast<int>(s->size()) : 0;
   result.timings.preprocessing = Seconds(phase);
 
   // Matching: mutual nearest neighbours in feature space, then the tuple test.
   phase = Clock::now();
-  std::vector<std::pair<std::size_t, std::size_t>> mutual;
-  if (!stopped && !s.points.empty() && !t.points.empty()) {
-    StopPoller stop(callbacks.should_stop, 16);  // each row is a pass over all features
-    std::vector<std::size_t> t_to_s(t.points.size());
-    for (std::size_t j = 0; j < t.points.size() && !stop.Poll(); ++j)
-      t_to_s[j] = NearestFeature(t.features[j], s.features);
-    for (std::size_t i = 0; i < s.points.size() && !stop.Poll(); ++i) {
-      const std::size_t j = NearestFeature(s.features[i], t.features);
-      if (t_to_s[j] == i) mutual.emplace_back(i, j);
-    }
-    stopped = stop.stopped();
+  FeatureMatches matched;
+  if (!stopped) {
+    matched = MatchFeatures(*s, *t, /*min_mutual=*/0, callbacks.should_stop);
+    stopped = matched.stopped;
   }
   if (stopped) {
     result.transform = Matrix4::Identity();
@@ -120,6 +89,7 @@ absl::StatusOr<RegistrationResult> internal::RunFastGlobalRegistration(
     result.timings.total = Seconds(start);
     return result;
   }
+  const auto& mutual = matched.pairs;
   std::vector<std::pair<std::size_t, std::size_t>> corr;
   std::mt19937_64 rng(options.seed);
   if (mutual.size() >= 3) {
@@ -131,8 +101,8 @@ absl::StatusOr<RegistrationResult> internal::RunFastGlobalRegistration(
       if (a == b || b == c || a == c) continue;
       bool consistent = true;
       for (auto [x, y] : {std::pair{a, b}, std::pair{b, c}, std::pair{c, a}}) {
-        const double ls = (s.points[mutual[x].first] - s.points[mutual[y].first]).norm();
-        const double lt = (t.points[mutual[x].second] - t.points[mutual[y].second]).norm();
+        const double ls = (s->points[mutual[x].first] - s->points[mutual[y].first]).norm();
+        const double lt = (t->points[mutual[x].second] - t->points[mutual[y].second]).norm();
         if (!(ls > 0.0 && lt > 0.0) || ls / lt < kTupleScale || lt / ls < kTupleScale) {
           consistent = false;
           break;
@@ -150,19 +120,19 @@ absl::StatusOr<RegistrationResult> internal::RunFastGlobalRegistration(
   // Optimisation in normalised coordinates (each cloud centred, both scaled by one factor).
   phase = Clock::now();
   Vec3 cs = Vec3::Zero(), ct = Vec3::Zero();
-  for (const Vec3& x : s.points) cs += x;
-  for (const Vec3& x : t.points) ct += x;
-  if (!s.points.empty()) cs /= static_cast<double>(s.points.size());
-  if (!t.points.empty()) ct /= static_cast<double>(t.points.size());
-  double scale = 0.0;
-  for (const Vec3& x : s.points) scale = std::max(scale, (x - cs).norm());
-  for (const Vec3& x : t.points) scale = std::max(scale, (x - ct).norm());
-  if (!(scale > 0.0)) scale = 1.0;
+  for (const Vec3& x : s->points) cs += x;
+  for (const Vec3& x : t->points) ct += x;
+  if (!s->points.empty()) cs /= static_cast<double>(s->points.size());
+  if (!t->points.empty()) ct /= static_cast<double>(t->points.size());
+  double extent = 0.0;
+  for (const Vec3& x : s->points) extent = std::max(extent, (x - cs).norm());
+  for (const Vec3& x : t->points) extent = std::max(extent, (x - ct).norm());
+  if (!(extent > 0.0)) extent = 1.0;
   RigidTransform normalised = RigidTransform::Identity();  // maps normalised source to target
   auto to_world = [&](const RigidTransform& n) {
     RigidTransform w = RigidTransform::Identity();
     w.linear() = n.linear();
-    w.translation() = ct + scale * n.translation() - n.linear() * cs;
+    w.translation() = ct + extent * n.translation() - n.linear() * cs;
     return w;
   };
   double mu = 1.0;  // squared distance scale of the Geman-McClure weight
@@ -188,8 +158,8 @@ absl::StatusOr<RegistrationResult> internal::RunFastGlobalRegistration(
     report.iteration = iteration;
     double sum_squared = 0.0;
     for (const auto& [i, j] : corr) {
-      const Vec3 x = normalised * ((s.points[i] - cs) / scale);
-      const Vec3 e = (t.points[j] - ct) / scale - x;
+      const Vec3 x = normalised * ((s->points[i] - cs) / extent);
+      const Vec3 e = (t->points[j] - ct) / extent - x;
       const double r2 = e.squaredNorm();
       const double w = std::pow(mu / (mu + r2), 2);
       Eigen::Matrix<double, 3, 6> jacobian;  // de/d(omega, v) for x' = exp(omega) x + v
@@ -199,7 +169,7 @@ absl::StatusOr<RegistrationResult> internal::RunFastGlobalRegistration(
       g.noalias() += w * jacobian.transpose() * e;
       if (r2 < mu) {
         ++report.counts.matched;
-        sum_squared += r2 * scale * scale;
+        sum_squared += r2 * extent * extent;
       } else {
         ++report.counts.rejected_distance;
       }

@@ -13,56 +13,8 @@ namespace {
 
 using Match = std::pair<std::uint32_t, std::uint32_t>;  // (source sample, target sample)
 
-// Nearest features both ways in one pass over all pairs; the mutual matches, or every source
-// sample's match when fewer than kMinMutual are mutual (as Open3D does).
+// RANSAC draws from the one-way matches when fewer than this are mutual.
 constexpr std::size_t kMinMutual = 30;
-
-struct FeatureMatches {
-  std::vector<Match> matches;
-  bool stopped = false;
-};
-
-FeatureMatches MatchFeatures(const FeatureCloud& source, const FeatureCloud& target,
-                             const StopCheck& should_stop) {
-  FeatureMatches out;
-  const std::size_t ns = source.size(), nt = target.size();
-  if (ns == 0 || nt == 0) return out;
-  constexpr float kInf = std::numeric_limits<float>::max();
-  std::vector<std::uint32_t> best_of_source(ns, 0), best_of_target(nt, 0);
-  std::vector<float> best_source_d2(ns, kInf), best_target_d2(nt, kInf);
-  StopPoller stop(should_stop, 32);  // a row is a pass over all target features
-  for (std::uint32_t i = 0; i < ns; ++i) {
-    if (stop.Poll()) {
-      out.stopped = true;
-      return out;
-    }
-    const FpfhFeature& f = source.features[i];
-    for (std::uint32_t j = 0; j < nt; ++j) {
-      const FpfhFeature& g = target.features[j];
-      float d2 = 0.0f;
-      for (int b = 0; b < 33; ++b) {
-        const float diff = f[b] - g[b];
-        d2 += diff * diff;
-      }
-      if (d2 < best_source_d2[i]) {
-        best_source_d2[i] = d2;
-        best_of_source[i] = j;
-      }
-      if (d2 < best_target_d2[j]) {
-        best_target_d2[j] = d2;
-        best_of_target[j] = i;
-      }
-    }
-  }
-  for (std::uint32_t i = 0; i < ns; ++i) {
-    if (best_of_target[best_of_source[i]] == i) out.matches.emplace_back(i, best_of_source[i]);
-  }
-  if (out.matches.size() < kMinMutual) {
-    out.matches.clear();
-    for (std::uint32_t i = 0; i < ns; ++i) out.matches.emplace_back(i, best_of_source[i]);
-  }
-  return out;
-}
 
 double RotationAngleDeg(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
   const double c = std::clamp(((a.transpose() * b).trace() - 1.0) / 2.0, -1.0, 1.0);
@@ -211,17 +163,60 @@ class Ransac {
 
 }  // namespace
 
+FeatureMatches MatchFeatures(const FeatureCloud& source, const FeatureCloud& target,
+                             std::size_t min_mutual, const StopCheck& should_stop) {
+  FeatureMatches out;
+  const std::size_t ns = source.size(), nt = target.size();
+  if (ns == 0 || nt == 0) return out;
+  constexpr float kInf = std::numeric_limits<float>::max();
+  std::vector<std::uint32_t> best_of_source(ns, 0), best_of_target(nt, 0);
+  std::vector<float> best_source_d2(ns, kInf), best_target_d2(nt, kInf);
+  StopPoller stop(should_stop, 32);  // a row is a pass over all target features
+  for (std::uint32_t i = 0; i < ns; ++i) {
+    if (stop.Poll()) {
+      out.stopped = true;
+      return out;
+    }
+    const FpfhFeature& f = source.features[i];
+    for (std::uint32_t j = 0; j < nt; ++j) {
+      const FpfhFeature& g = target.features[j];
+      float d2 = 0.0f;
+      for (int b = 0; b < 33; ++b) {
+        const float diff = f[b] - g[b];
+        d2 += diff * diff;
+      }
+      if (d2 < best_source_d2[i]) {
+        best_source_d2[i] = d2;
+        best_of_source[i] = j;
+      }
+      if (d2 < best_target_d2[j]) {
+        best_target_d2[j] = d2;
+        best_of_target[j] = i;
+      }
+    }
+  }
+  for (std::uint32_t i = 0; i < ns; ++i) {
+    if (best_of_target[best_of_source[i]] == i) out.pairs.emplace_back(i, best_of_source[i]);
+  }
+  if (out.pairs.size() < min_mutual) {
+    out.pairs.clear();
+    out.mutual = false;
+    for (std::uint32_t i = 0; i < ns; ++i) out.pairs.emplace_back(i, best_of_source[i]);
+  }
+  return out;
+}
+
 GlobalCandidates FindGlobalCandidates(const FeatureCloud& source, const FeatureCloud& target,
                                       const GlobalCandidateOptions& options,
                                       const StopCheck& should_stop) {
   GlobalCandidates out;
-  FeatureMatches matched = MatchFeatures(source, target, should_stop);
+  FeatureMatches matched = MatchFeatures(source, target, kMinMutual, should_stop);
   if (matched.stopped) {
     out.stopped = true;
     return out;
   }
-  out.matches = static_cast<int>(matched.matches.size());
-  Ransac ransac(source, target, std::move(matched.matches), options);
+  out.matches = static_cast<int>(matched.pairs.size());
+  Ransac ransac(source, target, std::move(matched.pairs), options);
   if (!ransac.Run(should_stop, out.trials)) {
     out.stopped = true;
     return out;

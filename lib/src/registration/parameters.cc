@@ -184,7 +184,7 @@ std::vector<ParameterSpec> MakeTable() {
           kOpenClosed(0, kMaxFgrFeatureRadiusD), "FGR: FPFH radius (units of d)"),
       Row<&O::fgr, &FgrParams::samples>("fgr.samples", "fgr-samples", "fgr_samples", fgr,
                                         kClosed(10, kMaxFgrSamples),
-                                        "FGR: samples per cloud with features"),
+                                        "FGR: at most this many voxel samples per cloud get features"),
       Row<&O::automatic, &AutoParams::candidates>(
           "auto.candidates", "auto-candidates", "auto_candidates", automatic, kClosed(1, 32),
           "auto: global candidate poses refined when the start does not verify"),

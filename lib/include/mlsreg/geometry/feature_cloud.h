@@ -20,9 +20,12 @@ inline constexpr double kFeatureRadiusPerVoxel = 5.0;
 // Feature matching is quadratic in the samples: larger clouds get larger voxels.
 inline constexpr std::size_t kMaxFeatureSamples = 2500;
 
+// The scale and size of a feature cloud.
 struct FeatureScale {
   double voxel = 0.0;           // absolute units
   double feature_radius = 0.0;  // absolute units
+  // A seeded random subset of the voxel samples is kept beyond this many.
+  std::size_t max_samples = 2 * kMaxFeatureSamples;
 };
 
 struct FeatureCloud {
@@ -53,7 +56,7 @@ bool ComputeFeatures(FeatureCloud& cloud, const StopCheck& should_stop = {});
 // come from `surface` (a per-point analysis of all of `points`) when given, else from an analysis
 // at `normal_radius` of the representatives alone, oriented toward `viewpoint` when given. A
 // cloud larger than the target may give more than kMaxFeatureSamples samples; a seeded random
-// subset of them is kept. Samples without a valid normal are dropped. nullopt when `should_stop`
+// subset of them (scale.max_samples) is kept. Samples without a valid normal are dropped. nullopt when `should_stop`
 // said stop.
 std::optional<FeatureCloud> BuildFeatureCloud(const std::vector<Vec3>& points, const KdTree& tree,
                                               const SurfaceProperties* surface,

@@ -14,6 +14,17 @@
 
 namespace mlsreg {
 
+// Feature matches (source sample, target sample): nearest neighbours in feature space both ways
+// in one pass over all pairs, keeping the mutual ones; when fewer than `min_mutual` are mutual,
+// every source sample's nearest instead (as Open3D does).
+struct FeatureMatches {
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;
+  bool mutual = true;
+  bool stopped = false;  // `should_stop` said stop; pairs are then empty
+};
+FeatureMatches MatchFeatures(const FeatureCloud& source, const FeatureCloud& target,
+                             std::size_t min_mutual, const StopCheck& should_stop = {});
+
 struct GlobalCandidateOptions {
   int max_candidates = 8;
   int max_trials = 50'000;

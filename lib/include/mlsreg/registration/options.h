@@ -50,7 +50,9 @@ struct FgrParams {
   // FPFH radius: paper Table 2 uses 30 d for real scans (LRF), 10-15 d for its synthetic set;
   // 30 d also did best on the dragon tuning split (16/20 successes vs 13/20 at 10 d).
   double feature_radius_d = 30.0;
-  int samples = 3000;  // random samples of each cloud that get features
+  // At most this many samples of each cloud get features: one per voxel of a fifth of the
+  // feature radius (a random subset beyond this).
+  int samples = 3000;
 };
 
 // The filters of the coarse phase (MLS far queries seeded from target samples). Far from the
