@@ -104,12 +104,14 @@ void BM_MlsPatchProjectionWarm(benchmark::State& state) {
 }
 BENCHMARK(BM_MlsPatchProjectionWarm)->Arg(5)->Arg(8)->Unit(benchmark::kMicrosecond);
 
-// Argument 0: the target build without MLS patches, 1: with them (the default). Counter
-// bytes_per_point: Target::MemoryBytes() / points.
+// Argument 0: the target build without MLS patches, 1: with them and the global features (the
+// default), 2: with the patches but without the features. Counter bytes_per_point:
+// Target::MemoryBytes() / points.
 void BM_TargetBuild(benchmark::State& state) {
   const BunnyPair& p = Pair();
   TargetOptions options;
   options.build_mls_patches = state.range(0) != 0;
+  options.build_global_features = state.range(0) != 2;
   std::size_t bytes = 0;
   for (auto _ : state) {
     auto target = Target::Build(p.target->cloud(), options);
@@ -120,7 +122,7 @@ void BM_TargetBuild(benchmark::State& state) {
   state.counters["bytes_per_point"] =
       static_cast<double>(bytes) / static_cast<double>(p.target->cloud().size());
 }
-BENCHMARK(BM_TargetBuild)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_TargetBuild)->DenseRange(0, 2)->Unit(benchmark::kMillisecond);
 
 // MLS-SICP with each MLS projection (argument: 0 patches then exact, the default; 1 patches
 // only; 2 exact only).
@@ -211,10 +213,10 @@ BENCHMARK(BM_GlobalStage)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 void BM_AutoMethod(benchmark::State& state) {
   const BunnyPair& p = Pair();
   const bool far = state.range(0) == 1;
-  const Matrix4 initial = RandomPerturbation(far ? 180.0 : 10.0,
-                                             (far ? 30.0 : 10.0) * p.target->sampling_distance(),
-                                             Vec3::Zero(), 1) *
-                          p.truth;
+  const Matrix4 initial =
+      RandomPerturbation(far ? 180.0 : 10.0, (far ? 30.0 : 10.0) * p.target->sampling_distance(),
+                         Vec3::Zero(), 1) *
+      p.truth;
   const RegistrationOptions options;  // auto, the default
   int candidates = 0;
   for (auto _ : state) {

@@ -3,6 +3,12 @@
 
     bash bench/peer_comparison.sh            (installs python3-open3d, builds, scans, runs this)
     python3 bench/peer_comparison.py --scans build/tuning/scans --mlsreg build/mlsreg
+    python3 bench/peer_comparison.py --scans build/tuning/scans --global build/any-start/peers_global.csv
+
+The second form runs Open3D's global peers instead (FGR and RANSAC over FPFH matches, each
+followed by point-to-plane ICP, tuned per noise level; see run_global_peers) on the tuning split
+and the real bunny and dragon pairs, one row per problem for scripts/any_start_summary.py, which
+sets them beside mlsreg's methods from the same problems' rotated starts (they ignore the start).
 
 Problems: the tuning split (scripts/tuning-split.sh: 4 CGAL meshes x 12 virtual-scanner views,
 sigma = 0, 0.8 d and 2 d, each view registered to its neighbour from the scanner's 30-degree

@@ -60,8 +60,8 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
         "candidate %d of %zu chosen%s\n",
         a->verified ? "verified" : "NOT VERIFIED (no candidate fits; do not trust the transform)",
         100.0 * a->verification.inlier_fraction, a->verification.inlier_distance_d,
-        a->verification.rmse_d, a->chosen,
-        a->candidates.size(), a->early_exit ? " (the start verified: no global stage)" : "");
+        a->verification.rmse_d, a->chosen, a->candidates.size(),
+        a->early_exit ? " (the start verified: no global stage)" : "");
     out += absl::StrFormat(
         "auto stages: start %.3f s, global %.3f s (%d feature matches), candidates %.3f s, final "
         "%.3f s\n",

@@ -15,7 +15,7 @@ import os
 import statistics
 import sys
 
-BANDS = [(0, 30), (30, 60), (60, 90), (90, 135), (135, 180.01)]
+BANDS = [(0, 20), (20, 60), (60, 90), (90, 135), (135, 180.01)]
 ALPHAS = [0.25 * k for k in range(1, 41)]  # 0.25 .. 10 d
 SUCCESS_D = 5.0
 
@@ -121,13 +121,13 @@ def main():
                   f" {gf[0]:.3f}, median {statistics.median(gf):.3f}; RMSE over the inlier distance"
                   f" median {statistics.median(gr):.2f}, max {gr[-1]:.2f}.")
 
-    # alpha-recall per start-angle band, over the rotated starts (rot90, any) of both sets.
+    # alpha-recall per start-angle band, over every start of both sets.
     peers = {}
     if args.peers:
         with open(args.peers) as f:
             for row in csv.DictReader(f):
                 peers.setdefault(row["method"], {})[(row["set"], row["sigma"], row["id"])] = float(row["rmse_d"])
-    rotated = [r for r in runs if r["start"] in ("rot90", "any")]
+    rotated = runs
     curves = {}
     for r in rotated:
         b = band_of(float(r["initial_rotation_error_deg"]))
@@ -139,7 +139,7 @@ def main():
                     curves.setdefault((pm, b), []).append(values[key])
     all_methods = methods + sorted(peers)
     bands = [band_of(lo) for lo, _ in BANDS]
-    print("\n### α-recall per start-angle band (rot90 and any starts, synthetic and real)\n")
+    print("\n### α-recall per start-angle band (every start, synthetic and real)\n")
     print("Share of problems with RMSE below α = 1 d / 5 d.\n")
     print("| method | " + " | ".join(bands) + " |")
     print("|---|" + "---|" * len(bands))
@@ -160,7 +160,9 @@ def main():
             for m in all_methods:
                 v = curves.get((m, b), [])
                 if v:
-                    ax.plot(ALPHAS, [sum(x < a for x in v) / len(v) for a in ALPHAS], label=m)
+                    ax.plot(ALPHAS, [sum(x < a for x in v) / len(v) for a in ALPHAS], label=m,
+                            color="black" if m == "auto" else None, lw=2.4 if m == "auto" else 1.3,
+                            zorder=3 if m == "auto" else 2)
             ax.set_title(f"start {b} (n={len(curves.get((methods[0], b), []))})")
             ax.set_xlabel("α (RMSE threshold, units of d)")
             ax.grid(alpha=0.3)

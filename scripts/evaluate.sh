@@ -56,7 +56,7 @@ t_scan=$(elapsed "$t")
 # Exit status 3 only says some run missed 5 d: that is a result, not an error.
 run_eval() { "$MLSREG" eval --jobs "$JOBS" "$@" || [ $? -eq 3 ]; }
 t=$(now)
-synthetic_methods=rc-bl,rc-p,g-icp,cp-sicp,fgr,st-sicp,cp-sicp+mls-sicp,mls-sicp
+synthetic_methods=rc-bl,rc-p,g-icp,cp-sicp,fgr,st-sicp,cp-sicp+mls-sicp,mls-sicp,auto
 gicp=(--gicp-max-distance 8 --gicp-epsilon 0.001)
 for sigma in 0 0.8 2; do
   if [ $sigma = 2 ]; then params=(--fgr-radius 15); paper_r=8; else params=(--fgr-radius 10); paper_r=5; fi
@@ -79,7 +79,7 @@ t=$(now)
 echo "== real scans"
 run_eval --pairs "$SHARED/data/real/stanford_bunny/pairs.csv" \
   --pairs "$SHARED/data/real/3dmatch_geotransformer_demo/pairs.csv" \
-  --methods g-icp,cp-sicp,fgr,st-sicp,cp-sicp+mls-sicp,mls-sicp \
+  --methods g-icp,cp-sicp,fgr,st-sicp,cp-sicp+mls-sicp,mls-sicp,auto \
   --perturb-angle 10 --perturb-translation 10 --perturb-seed 1 --out "$OUT/real.csv"
 t_real=$(elapsed "$t")
 

@@ -59,7 +59,7 @@ void RegistrationJob::Publish(const IterationReport& report) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     latest_ = report;  // latest wins: an unsent older report is simply replaced
-    latest_iteration_ = report.iteration;
+    ++published_;
   }
   Notify();
 }
@@ -116,13 +116,12 @@ void RegistrationJob::Run() {
 RegistrationJob::Update RegistrationJob::WaitForUpdate(std::chrono::milliseconds timeout) {
   std::unique_lock<std::mutex> lock(mutex_);
   if (timeout.count() > 0) {
-    changed_.wait_for(lock, timeout,
-                      [this] { return done_ || latest_iteration_ > returned_iteration_; });
+    changed_.wait_for(lock, timeout, [this] { return done_ || published_ > returned_; });
   }
   Update update;
-  if (latest_iteration_ > returned_iteration_) {
+  if (published_ > returned_) {
     update.progress = latest_;
-    returned_iteration_ = latest_iteration_;
+    returned_ = published_;
   }
   update.done = done_;
   return update;

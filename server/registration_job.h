@@ -8,6 +8,7 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -94,8 +95,10 @@ class RegistrationJob {
   std::mutex mutex_;
   std::condition_variable changed_;
   std::optional<IterationReport> latest_;  // guarded by mutex_
-  int latest_iteration_ = 0;
-  int returned_iteration_ = 0;  // newest iteration handed to the handler
+  // Reports published and handed to the handler, counted (not iteration numbers: method auto's
+  // stages number their iterations from 1 again).
+  std::uint64_t published_ = 0;
+  std::uint64_t returned_ = 0;
   bool done_ = false;
   absl::StatusOr<RegistrationOutcome> outcome_ = absl::UnknownError("not finished");
   std::function<void()> listener_;  // guarded by mutex_

@@ -62,9 +62,9 @@ absl::StatusOr<RegistrationResult> internal::RunFastGlobalRegistration(
   const KdTree& source_tree = problem.source_tree ? *problem.source_tree : *own_source_tree;
   const double normal_radius = target.options().analysis_radius_d * d;
   const FeatureScale scale = FgrScale(p, d);
-  const std::optional<FeatureCloud> s = BuildFeatureCloud(
-      source.points, source_tree, nullptr, normal_radius, source.viewpoint, scale,
-      callbacks.should_stop);
+  const std::optional<FeatureCloud> s =
+      BuildFeatureCloud(source.points, source_tree, nullptr, normal_radius, source.viewpoint, scale,
+                        callbacks.should_stop);
   std::optional<FeatureCloud> own_target;
   const FeatureCloud* t = target.features();
   if (s && (!t || !SameScale(t->scale, scale))) {

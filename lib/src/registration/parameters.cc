@@ -182,9 +182,9 @@ std::vector<ParameterSpec> MakeTable() {
       Row<&O::fgr, &FgrParams::feature_radius_d>(
           "fgr.feature_radius_d", "fgr-radius", "fgr_feature_radius_d", fgr,
           kOpenClosed(0, kMaxFgrFeatureRadiusD), "FGR: FPFH radius (units of d)"),
-      Row<&O::fgr, &FgrParams::samples>("fgr.samples", "fgr-samples", "fgr_samples", fgr,
-                                        kClosed(10, kMaxFgrSamples),
-                                        "FGR: at most this many voxel samples per cloud get features"),
+      Row<&O::fgr, &FgrParams::samples>(
+          "fgr.samples", "fgr-samples", "fgr_samples", fgr, kClosed(10, kMaxFgrSamples),
+          "FGR: at most this many voxel samples per cloud get features"),
       Row<&O::automatic, &AutoParams::candidates>(
           "auto.candidates", "auto-candidates", "auto_candidates", automatic, kClosed(1, 32),
           "auto: global candidate poses refined when the start does not verify"),

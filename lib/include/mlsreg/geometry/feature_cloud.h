@@ -56,8 +56,8 @@ bool ComputeFeatures(FeatureCloud& cloud, const StopCheck& should_stop = {});
 // come from `surface` (a per-point analysis of all of `points`) when given, else from an analysis
 // at `normal_radius` of the representatives alone, oriented toward `viewpoint` when given. A
 // cloud larger than the target may give more than kMaxFeatureSamples samples; a seeded random
-// subset of them (scale.max_samples) is kept. Samples without a valid normal are dropped. nullopt when `should_stop`
-// said stop.
+// subset of them (scale.max_samples) is kept. Samples without a valid normal are dropped. nullopt
+// when `should_stop` said stop.
 std::optional<FeatureCloud> BuildFeatureCloud(const std::vector<Vec3>& points, const KdTree& tree,
                                               const SurfaceProperties* surface,
                                               double normal_radius,

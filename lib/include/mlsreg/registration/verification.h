@@ -20,10 +20,10 @@ struct VerificationOptions {
 };
 
 struct VerificationScore {
-  int samples = 0;               // source samples tried
-  int inliers = 0;               // samples that agree
-  double inlier_fraction = 0.0;  // inliers / samples: the score (share of the source explained)
-  double rmse_d = 0.0;           // RMSE of the agreeing samples' distances, units of d
+  int samples = 0;                 // source samples tried
+  int inliers = 0;                 // samples that agree
+  double inlier_fraction = 0.0;    // inliers / samples: the score (share of the source explained)
+  double rmse_d = 0.0;             // RMSE of the agreeing samples' distances, units of d
   double inlier_distance_d = 0.0;  // the distance within which a sample agrees, units of d
 };
 
