@@ -22,5 +22,9 @@ CommandRunner AddHealthCommand(CLI::App& app);
 CommandRunner AddStatsCommand(CLI::App& app);
 // `mlsreg batch`: many registrations from a manifest against a server.
 CommandRunner AddBatchCommand(CLI::App& app);
+// `mlsreg manual` (the Markdown reference, docs/cli.md) and `mlsreg completion bash`, both
+// generated from the commands above.
+CommandRunner AddManualCommand(CLI::App& app);
+CommandRunner AddCompletionCommand(CLI::App& app);
 
 }  // namespace mlsreg::cli

@@ -5,6 +5,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <thread>
 #include <vector>
@@ -13,6 +14,7 @@
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
 #include "cli/commands.h"
+#include "cli/exit_codes.h"
 #include "cli/registration_flags.h"
 #include "cli/report.h"
 #include "mlsreg/core/parallel_for.h"
@@ -25,6 +27,7 @@ struct EvalArgs {
   std::vector<std::string> manifests;
   std::string methods = "cp-sicp,mls-sicp";
   std::string out;
+  std::string json;  // the summary as JSON
   std::string label;
   double angle_deg = 0.0;
   double translation_d = 0.0;
@@ -38,7 +41,7 @@ struct EvalArgs {
 
 int Fail(const absl::Status& status) {
   std::fprintf(stderr, "mlsreg eval: %s\n", std::string(status.message()).c_str());
-  return status.code() == absl::StatusCode::kInvalidArgument ? 2 : 1;
+  return status.code() == absl::StatusCode::kInvalidArgument ? kExitBadInput : kExitFailed;
 }
 
 double Median(std::vector<double> v) {
@@ -231,10 +234,23 @@ int RunEval(const EvalArgs& args) {
                  std::string(MethodName(m)).c_str(), runs[m], successes[m], runs[m], Median(e),
                  mean, Median(time_by_method[m]));
   }
-  for (Method m : options.methods) {
-    if (successes[m] != runs[m]) return 3;  // some run failed or missed 5 d
+  if (!args.json.empty()) {
+    nlohmann::json methods = nlohmann::json::array();
+    for (Method m : options.methods) {
+      methods.push_back({{"method", std::string(MethodName(m))},
+                         {"runs", runs[m]},
+                         {"successes", successes[m]},
+                         {"median_rmse_d", Median(rmse_by_method[m])},
+                         {"median_time_s", Median(time_by_method[m])}});
+    }
+    std::ofstream out(args.json);
+    out << nlohmann::json{{"methods", methods}}.dump(2) << "\n";
+    if (!out) return Fail(absl::UnavailableError("cannot write --json file '" + args.json + "'"));
   }
-  return 0;
+  for (Method m : options.methods) {
+    if (successes[m] != runs[m]) return kExitMissed;
+  }
+  return kExitOk;
 }
 
 }  // namespace
@@ -246,6 +262,7 @@ CommandRunner AddEvalCommand(CLI::App& app) {
   cmd->add_option("--pairs", args->manifests, "manifest CSV (repeatable)")->required();
   cmd->add_option("--methods", args->methods, "comma-separated methods")->capture_default_str();
   cmd->add_option("--out", args->out, "results CSV (default: stdout)");
+  cmd->add_option("--json", args->json, "write the summary per method as JSON to this file");
   cmd->add_option("--label", args->label, "written in every row's label column (e.g. a variant)");
   cmd->add_option("--perturb-angle", args->angle_deg,
                   "rotate each start pose by this angle (degrees) about a seeded random axis")
@@ -259,7 +276,7 @@ CommandRunner AddEvalCommand(CLI::App& app) {
   cmd->add_option("--perturb-translation-max", args->translation_max_d,
                   "draw each translation's length uniformly between --perturb-translation and "
                   "this (units of d)");
-  cmd->add_option("--jobs", args->jobs, "registrations run in parallel")->capture_default_str();
+  cmd->add_option("--jobs", args->jobs, "registrations run in parallel (default: all cores)");
   cmd->add_option("--threads", args->threads,
                   "threads inside each registration (jobs x threads <= cores; results do not "
                   "depend on it)")

@@ -5,8 +5,10 @@
 #include "cli/commands.h"
 
 int main(int argc, char** argv) {
-  CLI::App app{"mlsreg: rigid point-cloud registration with MLS correspondences in Sparse ICP"};
+  CLI::App app{"mlsreg: rigid point-cloud registration with MLS correspondences in Sparse ICP",
+               "mlsreg"};
   app.require_subcommand(1);
+  app.set_version_flag("--version", "mlsreg " MLSREG_VERSION);
   std::vector<std::pair<CLI::App*, mlsreg::cli::CommandRunner>> commands;
   auto add = [&](mlsreg::cli::CommandRunner (*adder)(CLI::App&)) {
     const std::size_t before = app.get_subcommands({}).size();
@@ -20,6 +22,8 @@ int main(int argc, char** argv) {
   add(&mlsreg::cli::AddBatchCommand);
   add(&mlsreg::cli::AddHealthCommand);
   add(&mlsreg::cli::AddStatsCommand);
+  add(&mlsreg::cli::AddManualCommand);
+  add(&mlsreg::cli::AddCompletionCommand);
   CLI11_PARSE(app, argc, argv);
   for (auto& [sub, run] : commands) {
     if (sub->parsed()) return run();

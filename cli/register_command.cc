@@ -6,6 +6,7 @@
 
 #include "cli/commands.h"
 #include "cli/connection_flags.h"
+#include "cli/exit_codes.h"
 #include "cli/registration_flags.h"
 #include "cli/report.h"
 #include "mlsreg/core/parallel_for.h"
@@ -28,7 +29,7 @@ struct RegisterArgs {
 
 int Fail(const absl::Status& status) {
   std::fprintf(stderr, "mlsreg register: %s\n", std::string(status.message()).c_str());
-  return status.code() == absl::StatusCode::kInvalidArgument ? 2 : 1;
+  return status.code() == absl::StatusCode::kInvalidArgument ? kExitBadInput : kExitFailed;
 }
 
 void PrintIteration(const IterationReport& r) {
@@ -42,9 +43,6 @@ Matrix4 Perturbed(const RegisterArgs& args, const PointCloud& source, const Matr
   return PerturbedStart(source, initial, d,
                         {args.perturb_angle, args.perturb_translation, args.perturb_seed});
 }
-
-// Exit code of a registration that ran but whose result did not verify (method auto).
-constexpr int kExitNotVerified = 4;
 
 // Writes --json, and returns the exit code of a finished registration.
 int Finish(const RegisterArgs& args, const RegistrationOptions& options,
@@ -134,8 +132,8 @@ CommandRunner AddRegisterCommand(CLI::App& app) {
   auto args = std::make_shared<RegisterArgs>();
   CLI::App* cmd = app.add_subcommand(
       "register",
-      "register a source scan to a target scan (exit 0: done; 1: failed; 2: bad arguments; 4: "
-      "method auto found no pose that verifies)");
+      "register a source scan to a target scan (exit codes: see `mlsreg manual`; 4: method auto "
+      "found no pose that verifies)");
   cmd->add_option("--source", args->source, "source cloud (PLY, PCD, XYZ/CSV)")->required();
   cmd->add_option("--target", args->target,
                   "target cloud (PLY, PCD, XYZ/CSV), or with --server the id of a cached target")
@@ -153,7 +151,6 @@ CommandRunner AddRegisterCommand(CLI::App& app) {
   cmd->add_option("--threads", args->threads,
                   "threads of the target build and the registration (default: all cores; the "
                   "result is the same for any count; with --server the server decides)")
-      ->capture_default_str()
       ->check(CLI::Range(1, 256));
   args->flags.AddTo(*cmd);
   args->connection.AddTo(*cmd, /*server_required=*/false);

@@ -1,11 +1,13 @@
 // `mlsreg targets ...`, `mlsreg health`, `mlsreg stats`: thin wrappers over the client library.
 #include <cstdio>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "absl/strings/str_format.h"
 #include "cli/commands.h"
 #include "cli/connection_flags.h"
+#include "cli/exit_codes.h"
 #include "mlsreg/io/io.h"
 
 namespace mlsreg::cli {
@@ -15,7 +17,7 @@ int Fail(const char* command, const absl::Status& status) {
   std::fprintf(stderr, "mlsreg %s: %s: %s\n", command,
                absl::StatusCodeToString(status.code()).c_str(),
                std::string(status.message()).c_str());
-  return status.code() == absl::StatusCode::kInvalidArgument ? 2 : 1;
+  return status.code() == absl::StatusCode::kInvalidArgument ? kExitBadInput : kExitFailed;
 }
 
 void PrintTarget(const TargetInfo& t) {
@@ -29,9 +31,23 @@ void PrintTarget(const TargetInfo& t) {
       t.digest.c_str(), t.has_intrinsics ? "  organised" : "");
 }
 
+nlohmann::json TargetJson(const TargetInfo& t) {
+  return {{"id", t.id},
+          {"state", std::string(NameOf(TargetStateNames(), t.state))},
+          {"points", t.point_count},
+          {"memory_bytes", t.memory_bytes},
+          {"sampling_distance", t.sampling_distance},
+          {"noise_sigma_d", t.noise_sigma_d},
+          {"build_seconds", t.build_seconds},
+          {"registrations", t.registrations},
+          {"organised", t.has_intrinsics},
+          {"content_digest", t.digest}};
+}
+
 struct TargetsArgs {
   ConnectionFlags connection;
   std::string id, file;
+  bool json = false;  // print JSON instead of text
 };
 
 }  // namespace
@@ -50,6 +66,9 @@ CommandRunner AddTargetsCommand(CLI::App& app) {
   CLI::App* remove = cmd->add_subcommand("delete", "delete a target (admin)");
   remove->add_option("id", args->id, "target id")->required();
   for (CLI::App* sub : {upload, get, list, remove}) args->connection.AddTo(*sub, true);
+  for (CLI::App* sub : {upload, get, list}) {
+    sub->add_flag("--json", args->json, "print the target(s) as JSON");
+  }
   return [args, upload, get, list, remove]() -> int {
     auto client = args->connection.Connect();
     if (!client.ok()) return Fail("targets", client.status());
@@ -58,16 +77,22 @@ CommandRunner AddTargetsCommand(CLI::App& app) {
       if (!cloud.ok()) return Fail("targets upload", cloud.status());
       auto info = (*client)->UploadTarget(args->id, *cloud);
       if (!info.ok()) return Fail("targets upload", info.status());
-      PrintTarget(*info);
+      args->json ? (void)std::printf("%s\n", TargetJson(*info).dump().c_str()) : PrintTarget(*info);
     } else if (get->parsed()) {
       auto info = (*client)->GetTarget(args->id);
       if (!info.ok()) return Fail("targets get", info.status());
-      PrintTarget(*info);
+      args->json ? (void)std::printf("%s\n", TargetJson(*info).dump().c_str()) : PrintTarget(*info);
     } else if (list->parsed()) {
       auto all = (*client)->ListTargets();
       if (!all.ok()) return Fail("targets list", all.status());
-      for (const TargetInfo& t : *all) PrintTarget(t);
-      std::printf("%zu targets\n", all->size());
+      if (args->json) {
+        nlohmann::json targets = nlohmann::json::array();
+        for (const TargetInfo& t : *all) targets.push_back(TargetJson(t));
+        std::printf("%s\n", targets.dump().c_str());
+      } else {
+        for (const TargetInfo& t : *all) PrintTarget(t);
+        std::printf("%zu targets\n", all->size());
+      }
     } else if (remove->parsed()) {
       if (absl::Status s = (*client)->DeleteTarget(args->id); !s.ok()) {
         return Fail("targets delete", s);
@@ -83,7 +108,9 @@ CommandRunner AddHealthCommand(CLI::App& app) {
       app.add_subcommand("health", "ask servers whether they are serving (exit 0 if every one is)");
   auto connection = std::make_shared<ConnectionFlags>();
   connection->AddTo(*cmd, true);
-  return [connection]() -> int {
+  auto json = std::make_shared<bool>(false);
+  cmd->add_flag("--json", *json, "print one JSON object per server");
+  return [connection, json]() -> int {
     auto client = connection->Connect();
     if (!client.ok()) return Fail("health", client.status());
     const std::vector<std::string> replicas = (*client)->replicas();
@@ -95,11 +122,19 @@ CommandRunner AddHealthCommand(CLI::App& app) {
         all_serving = false;
         continue;
       }
-      if (replicas.size() > 1) std::printf("%s ", replicas[i].c_str());
-      std::printf("%s\n", health->status.c_str());
+      if (*json) {
+        std::printf("%s\n", nlohmann::json{{"server", replicas[i]},
+                                           {"status", health->status},
+                                           {"serving", health->serving}}
+                                .dump()
+                                .c_str());
+      } else {
+        if (replicas.size() > 1) std::printf("%s ", replicas[i].c_str());
+        std::printf("%s\n", health->status.c_str());
+      }
       all_serving = all_serving && health->serving;
     }
-    return all_serving ? 0 : 1;
+    return all_serving ? kExitOk : kExitFailed;
   };
 }
 

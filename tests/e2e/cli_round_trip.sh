@@ -77,6 +77,12 @@ python3 -c "import json,sys; j=json.load(open(sys.argv[1])); assert not j['auto'
   || fail "mismatched pair: --json says verified"
 grep -q "MLS radius: 5.00 d (auto" "$work/remote.txt" || fail "no radius line: $(head -3 "$work/remote.txt")"
 "$MLSREG" targets get --server "$A" bun045 | grep -q "noise 0\." || fail "targets get shows no noise"
+"$MLSREG" targets get --server "$A" bun045 --json | python3 -c "import json,sys; j=json.load(sys.stdin); assert j['id'] == 'bun045' and j['points'] == 40097 and 0 < j['noise_sigma_d'] < 0.5, j" \
+  || fail "targets get --json"
+"$MLSREG" targets list --server "$A" --json | python3 -c "import json,sys; assert 'bun045' in [t['id'] for t in json.load(sys.stdin)]" \
+  || fail "targets list --json"
+"$MLSREG" health --server "$A" --json | python3 -c "import json,sys; j=json.loads(sys.stdin.readline()); assert j['serving'] and j['status'] == 'SERVING', j" \
+  || fail "health --json"
 
 # Bad input is refused with INVALID_ARGUMENT naming the field.
 if "$MLSREG" register --server "$A" --target bun045 --source data/bunny/bun000.ply --mls-radius -1 \

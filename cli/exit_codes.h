@@ -1,0 +1,34 @@
+// The exit codes of every mlsreg command, in one table (printed by `mlsreg manual` into
+// docs/cli.md).
+#pragma once
+
+#include <span>
+#include <string_view>
+
+namespace mlsreg::cli {
+
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitFailed = 1;       // I/O, server, internal error; a failed batch job
+inline constexpr int kExitBadInput = 2;     // bad arguments or input (INVALID_ARGUMENT)
+inline constexpr int kExitMissed = 3;       // eval: some run failed or missed 5 d
+inline constexpr int kExitNotVerified = 4;  // register: method auto found no pose that verifies
+
+struct ExitCode {
+  int code;
+  std::string_view commands;
+  std::string_view meaning;
+};
+
+inline constexpr ExitCode kExitCodes[] = {
+    {kExitOk, "all", "done (health: every server is serving)"},
+    {kExitFailed, "all",
+     "failed: a file could not be read or written, the server refused or is unreachable, an "
+     "internal error (batch: some job failed; health: some server is not serving)"},
+    {kExitBadInput, "all", "bad arguments or input (the message names the flag or field)"},
+    {kExitMissed, "eval", "some run failed or missed the 5 d success threshold"},
+    {kExitNotVerified, "register",
+     "method auto registered, but no pose verifies against the target's MLS surface: the "
+     "printed transform is the best found and must not be trusted"},
+};
+
+}  // namespace mlsreg::cli
