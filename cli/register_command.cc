@@ -9,6 +9,7 @@
 #include "cli/exit_codes.h"
 #include "cli/registration_flags.h"
 #include "cli/report.h"
+#include "cli/result_clouds.h"
 #include "mlsreg/core/parallel_for.h"
 #include "mlsreg/evaluation/evaluation.h"
 #include "mlsreg/evaluation/metrics.h"
@@ -18,7 +19,7 @@ namespace mlsreg::cli {
 namespace {
 
 struct RegisterArgs {
-  std::string source, target, init, gt, json;
+  std::string source, target, init, gt, json, aligned, merged;
   bool quiet = false;
   double perturb_angle = 0.0, perturb_translation = 0.0;
   std::uint64_t perturb_seed = 1;
@@ -99,7 +100,13 @@ int RunRegister(const RegisterArgs& args) {
   }
   auto source = ReadPointCloud(args.source);
   if (!source.ok()) return Fail(source.status());
-  if (args.connection.has_server()) return RunRemote(args, *options, *source, initial, truth);
+  if (args.connection.has_server()) {
+    if (!args.aligned.empty() || !args.merged.empty()) {
+      return Fail(absl::InvalidArgumentError(
+          "--aligned and --merged need the target's cloud: register locally (no --server)"));
+    }
+    return RunRemote(args, *options, *source, initial, truth);
+  }
   auto target_cloud = ReadPointCloud(args.target);
   if (!target_cloud.ok()) return Fail(target_cloud.status());
   TargetOptions target_options;
@@ -123,6 +130,18 @@ int RunRegister(const RegisterArgs& args) {
     error = EvaluatePose(source->points, result->transform, *truth, result->sampling_distance);
   }
   std::printf("%s", FormatResult(*result, error).c_str());
+  if (!args.aligned.empty()) {
+    if (absl::Status s = WriteAlignedCloud(args.aligned, *source, result->transform, **target);
+        !s.ok()) {
+      return Fail(s);
+    }
+  }
+  if (!args.merged.empty()) {
+    if (absl::Status s = WriteMergedCloud(args.merged, *source, result->transform, **target);
+        !s.ok()) {
+      return Fail(s);
+    }
+  }
   return Finish(args, *options, *result, error);
 }
 
@@ -143,6 +162,12 @@ CommandRunner AddRegisterCommand(CLI::App& app) {
   cmd->add_option("--gt", args->gt, "ground-truth transform, to report the error against");
   cmd->add_option("--json", args->json, "write the result (transform, trace, errors) as JSON");
   cmd->add_flag("--quiet", args->quiet, "print only the result");
+  cmd->add_option("--aligned", args->aligned,
+                  "write the aligned source as PLY, with its distance to the target's MLS surface "
+                  "as scalar field distance_d (units of d) and as colours (blue 0, red >= 3 d)");
+  cmd->add_option("--merged", args->merged,
+                  "write source (orange) and target (blue) in the target's frame as PLY, with "
+                  "scalar field cloud (0 source, 1 target)");
   cmd->add_option("--perturb-angle", args->perturb_angle,
                   "rotate the start pose by this angle (degrees) about a seeded random axis");
   cmd->add_option("--perturb-translation", args->perturb_translation,

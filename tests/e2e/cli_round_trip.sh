@@ -34,7 +34,38 @@ GT=$(awk -F, '$1 == "bun000_bun045" { print $4 }' data/bunny/pairs.csv)
 args=(--source data/bunny/bun000.ply --init "$GT" --gt "$GT" --perturb-angle 5 --perturb-translation 5
       --samples 1000 --json)
 "$MLSREG" register --server "$A" --target bun045 "${args[@]}" "$work/remote.json" > "$work/remote.txt"
-"$MLSREG" register --target data/bunny/bun045.ply "${args[@]}" "$work/local.json" > "$work/local.txt"
+"$MLSREG" register --target data/bunny/bun045.ply "${args[@]}" "$work/local.json" \
+  --aligned "$work/aligned.ply" --merged "$work/merged.ply" > "$work/local.txt"
+# The result clouds: the aligned source with its distance to the target's MLS surface (scalar
+# field and colour ramp), and both clouds merged.
+python3 - "$work/aligned.ply" "$work/merged.ply" <<'PY' || fail "--aligned / --merged clouds"
+import statistics, struct, sys
+def read(path):
+    data = open(path, "rb").read()
+    end = data.index(b"end_header\n") + 11
+    header = data[:end].decode().splitlines()
+    n = int(next(l for l in header if l.startswith("element vertex")).split()[2])
+    props = [l.split() for l in header if l.startswith("property")]
+    fmt = "<" + "".join({"double": "d", "float": "f", "uchar": "B"}[p[1]] for p in props)
+    size = struct.calcsize(fmt)
+    rows = [struct.unpack_from(fmt, data, end + i * size) for i in range(n)]
+    assert len(data) == end + n * size, (len(data), end, n, size)
+    return [p[2] for p in props], rows
+names, rows = read(sys.argv[1])
+assert names == ["x", "y", "z", "distance_d", "red", "green", "blue"], names
+assert len(rows) == 40256, len(rows)
+d = [r[3] for r in rows]
+assert statistics.median(d) < 0.5 and min(d) >= 0, statistics.median(d)
+near = [r for r in rows if r[3] < 0.1]
+assert near and all(r[6] > 200 and r[4] == 0 for r in near), near[:3]  # blue where it fits
+names, rows = read(sys.argv[2])
+assert names == ["x", "y", "z", "cloud", "red", "green", "blue"], names
+assert len(rows) == 40256 + 40097 and sum(r[3] for r in rows) == 40097, len(rows)
+PY
+if "$MLSREG" register --server "$A" --target bun045 --source data/bunny/bun000.ply \
+    --aligned "$work/x.ply" 2> "$work/aligned_remote.txt"; then fail "--aligned with --server accepted"; fi
+grep -q -- "--aligned and --merged need the target's cloud" "$work/aligned_remote.txt" \
+  || fail "--aligned with --server: $(cat "$work/aligned_remote.txt")"
 iterations=$(grep -c "^\[start\] iter " "$work/remote.txt")
 [ "$iterations" -ge 2 ] || fail "remote stream printed $iterations iterations"
 python3 - "$work/remote.json" "$work/local.json" <<'PY' || fail "remote and local transforms differ"

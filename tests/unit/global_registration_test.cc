@@ -147,6 +147,20 @@ TEST(VerificationTest, TheTruthVerifiesAndAWrongPoseOrAnotherObjectDoesNot) {
   EXPECT_LT(other.inlier_fraction, 0.25);
 }
 
+// Points above a sampled plane are their height away from its MLS surface; far from the samples
+// the distance is the one to the nearest sample.
+TEST(VerificationTest, DistancesToTheMlsSurfaceOfAPlane) {
+  auto plane = Target::Build(testing::SamplePlaneGrid(1.0, 0.02, 0.002, 3)).value();
+  const std::vector<Vec3> points = {Vec3(0.1, 0.2, 0.0), Vec3(0.1, 0.2, 0.03),
+                                    Vec3(-0.3, 0.4, -0.05), Vec3(3.0, 0.0, 0.0)};
+  const std::vector<double> distances = DistancesToMlsSurface(*plane, points);
+  ASSERT_EQ(distances.size(), 4u);
+  EXPECT_NEAR(distances[0], 0.0, 1e-3);
+  EXPECT_NEAR(distances[1], 0.03, 1e-3);
+  EXPECT_NEAR(distances[2], 0.05, 1e-3);
+  EXPECT_NEAR(distances[3], 2.0, 0.03);  // to the nearest corner sample, about (1, 0, 0)
+}
+
 TEST(AutoMethodTest, NearTheTruthItReturnsMlsSicpsResultWithoutAGlobalStage) {
   const BunnyPair& bunny = Bunny();
   const Matrix4 start =

@@ -772,6 +772,42 @@ TEST_F(FileTest, WritesAndReadsEveryExtension) {
   }
 }
 
+// A PLY with a scalar field and colours reads back as the same cloud (the extra properties are
+// skipped), and its header and records hold the attributes where the PLY format puts them.
+TEST_F(FileTest, PlyWithAttributesReadsBackAndCarriesScalarsAndColours) {
+  const PointCloud cloud = MakeCloud(5, true);
+  PointAttributes attributes;
+  attributes.scalars.emplace_back("distance_d", std::vector<float>{0.5f, 1.f, 2.f, 3.f, 4.25f});
+  for (std::uint8_t i = 0; i < 5; ++i) attributes.colors.push_back({i, 100, 200});
+  const std::string path = PathOf("attributed.ply");
+  ASSERT_TRUE(WritePlyWithAttributes(cloud, attributes, path).ok());
+  const absl::StatusOr<PointCloud> read = ReadPointCloud(path);
+  ASSERT_TRUE(read.ok()) << read.status();
+  ExpectBitExact(*read, cloud);
+  const std::string bytes = *ReadFileBytes(path);
+  const std::size_t body = bytes.find("end_header\n") + 11;
+  EXPECT_NE(bytes.find("property double nz\nproperty float distance_d\nproperty uchar red\n"
+                       "property uchar green\nproperty uchar blue\nend_header"),
+            std::string::npos);
+  constexpr std::size_t kRecord = 6 * 8 + 4 + 3;
+  ASSERT_EQ(bytes.size(), body + 5 * kRecord);
+  float last;
+  std::memcpy(&last, bytes.data() + body + 4 * kRecord + 48, 4);  // little-endian host
+  EXPECT_EQ(last, 4.25f);
+  EXPECT_EQ(static_cast<std::uint8_t>(bytes[body + 4 * kRecord + 52]), 4);
+  EXPECT_EQ(static_cast<std::uint8_t>(bytes[body + 4 * kRecord + 54]), 200);
+
+  PointAttributes short_scalar;
+  short_scalar.scalars.emplace_back("d", std::vector<float>{1.f});
+  ExpectError(WritePlyWithAttributes(cloud, short_scalar, path), kInvalid, {"'d'", "one value"});
+  PointAttributes taken;
+  taken.scalars.emplace_back("red", std::vector<float>(5, 0.f));
+  ExpectError(WritePlyWithAttributes(cloud, taken, path), kInvalid, {"'red'"});
+  PointAttributes few_colours;
+  few_colours.colors.resize(2);
+  ExpectError(WritePlyWithAttributes(cloud, few_colours, path), kInvalid, {"colour"});
+}
+
 TEST_F(FileTest, MissingFileIsNotFound) {
   const std::string path = PathOf("missing.ply");
   ExpectError(ReadPointCloud(path), absl::StatusCode::kNotFound, {path});

@@ -3,6 +3,9 @@
 
 #include "mlsreg/io/io.h"
 
+#include <algorithm>
+#include <bit>
+#include <cctype>
 #include <cerrno>
 #include <cstdio>
 #include <memory>
@@ -138,6 +141,60 @@ absl::StatusOr<PointCloud> ReadPointCloud(const std::string& path) {
     return intrinsics.status();
   }
   return cloud;
+}
+
+absl::Status WritePlyWithAttributes(const PointCloud& cloud, const PointAttributes& attributes,
+                                    const std::string& path) {
+  const auto bad = [&](const std::string& why) {
+    return absl::InvalidArgumentError(absl::StrCat("cannot write '", path, "': ", why));
+  };
+  if (absl::Status valid = ValidatePointCloud(cloud, 1); !valid.ok()) {
+    return bad(std::string(valid.message()));
+  }
+  if (!attributes.colors.empty() && attributes.colors.size() != cloud.size()) {
+    return bad("one colour per point is needed");
+  }
+  static constexpr std::string_view kTaken[] = {"x",  "y",   "z",     "nx",  "ny",
+                                                "nz", "red", "green", "blue"};
+  for (const auto& [name, values] : attributes.scalars) {
+    const bool word = !name.empty() && std::all_of(name.begin(), name.end(), [](char c) {
+      return std::isalnum(static_cast<unsigned char>(c)) || c == '_';
+    });
+    if (!word || std::find(std::begin(kTaken), std::end(kTaken), name) != std::end(kTaken)) {
+      return bad(absl::StrCat("scalar name '", name, "' is not a free [A-Za-z0-9_]+ name"));
+    }
+    if (values.size() != cloud.size()) {
+      return bad(absl::StrCat("scalar '", name, "' needs one value per point"));
+    }
+  }
+  const bool normals = io_internal::WritesNormals(cloud);
+  std::string out = absl::StrCat(
+      "ply\nformat binary_little_endian 1.0\ncomment written by mlsreg\nelement vertex ",
+      cloud.size(), "\nproperty double x\nproperty double y\nproperty double z\n");
+  if (normals) out += "property double nx\nproperty double ny\nproperty double nz\n";
+  for (const auto& [name, values] : attributes.scalars) {
+    absl::StrAppend(&out, "property float ", name, "\n");
+  }
+  if (!attributes.colors.empty()) {
+    out += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+  }
+  out += "end_header\n";
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      io_internal::AppendDoubleBinary(cloud.points[i][k], std::endian::little, &out);
+    }
+    for (int k = 0; normals && k < 3; ++k) {
+      io_internal::AppendDoubleBinary(cloud.normals[i][k], std::endian::little, &out);
+    }
+    for (const auto& [name, values] : attributes.scalars) {
+      const std::uint32_t bits = std::bit_cast<std::uint32_t>(values[i]);
+      for (int b = 0; b < 4; ++b) out += static_cast<char>((bits >> (8 * b)) & 0xff);
+    }
+    if (!attributes.colors.empty()) {
+      for (std::uint8_t c : attributes.colors[i]) out += static_cast<char>(c);
+    }
+  }
+  return WriteFileBytes(path, out);
 }
 
 absl::Status WritePointCloud(const PointCloud& cloud, const std::string& path,

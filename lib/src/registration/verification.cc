@@ -47,6 +47,22 @@ VerificationScore VerifyAlignment(const Target& target, const std::vector<Vec3>&
   return score;
 }
 
+std::vector<double> DistancesToMlsSurface(const Target& target, const std::vector<Vec3>& points) {
+  std::vector<double> out(points.size());
+  const MlsPatches* patches = target.mls_patches();
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (patches) {
+      const MlsProjection p = patches->Project(points[i], /*seed_far_queries=*/false);
+      if (p.status == ProjectionStatus::kOk) {
+        out[i] = (points[i] - p.point).norm();
+        continue;
+      }
+    }
+    out[i] = std::sqrt(target.tree().Nearest(points[i]).distance_squared);
+  }
+  return out;
+}
+
 bool IsVerified(const VerificationScore& score, double min_inlier_fraction) {
   return score.inliers > 0 && score.inlier_fraction >= min_inlier_fraction &&
          score.rmse_d <= kMaxVerifiedRmsePerInlierDistance * score.inlier_distance_d;

@@ -40,8 +40,12 @@
 //        little-endian float64, shape (N, 3) or (N, 6).
 #pragma once
 
+#include <array>
+#include <cstdint>
 #include <string>
 #include <string_view>
+#include <utility>
+#include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
@@ -86,6 +90,22 @@ struct WriteOptions {
   PlyEncoding ply = PlyEncoding::kBinaryLittleEndian;
   PcdEncoding pcd = PcdEncoding::kBinary;
 };
+
+// Per-point attributes for viewers: CloudCompare and MeshLab show a float vertex property as a
+// scalar field and uchar red / green / blue as colours.
+struct PointAttributes {
+  std::vector<std::array<std::uint8_t, 3>> colors;                  // empty, or one per point
+  std::vector<std::pair<std::string, std::vector<float>>> scalars;  // (name, one per point)
+};
+
+// `cloud` (points as double x y z, normals when it has them) with `attributes`, as a binary
+// little-endian PLY (scalars as float properties after the normals, then red green blue).
+// InvalidArgument when an attribute has the wrong length, a scalar name is not [A-Za-z0-9_]+
+// or clashes with x y z nx ny nz red green blue, or the cloud does not pass
+// ValidatePointCloud(cloud, 1); file errors as for WritePointCloud. Our reader skips the extra
+// properties, so the file reads back as the cloud.
+absl::Status WritePlyWithAttributes(const PointCloud& cloud, const PointAttributes& attributes,
+                                    const std::string& path);
 
 // Writes `cloud` to `path` in the format chosen by its extension, as ReadPointCloud. The cloud must
 // pass ValidatePointCloud(cloud, 1) (InvalidArgument otherwise). A missing directory gives

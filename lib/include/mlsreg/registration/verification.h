@@ -35,6 +35,11 @@ inline constexpr double kMaxVerifiedRmsePerInlierDistance = 0.4;
 // and the agreeing samples' RMSE is at most kMaxVerifiedRmsePerInlierDistance of the band.
 bool IsVerified(const VerificationScore& score, double min_inlier_fraction);
 
+// The distance of each of `points` (in the target's frame) to the target's MLS surface: to its
+// projection by the target's MLS patches, or to the nearest target sample where no patch reaches
+// (or the target has none). Absolute units.
+std::vector<double> DistancesToMlsSurface(const Target& target, const std::vector<Vec3>& points);
+
 // Scores `transform` (source to target) by the source samples `points` with unit `normals`
 // (oriented toward the source's scanner when `oriented`). The target's MLS patches give the
 // surface; a target without them is scored against its nearest samples. `noise_d` is the
