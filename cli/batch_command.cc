@@ -13,6 +13,7 @@
 
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
+#include "cli/batch_report.h"
 #include "cli/commands.h"
 #include "cli/connection_flags.h"
 #include "cli/registration_flags.h"
@@ -24,7 +25,7 @@ namespace mlsreg::cli {
 namespace {
 
 struct BatchArgs {
-  std::string manifest, results = "results.csv";
+  std::string manifest, results = "results.csv", report;
   int concurrency = 4;
   bool resume = false;
   RegistrationFlags flags;
@@ -44,15 +45,6 @@ std::string TargetIdFor(const std::string& path, const std::string& digest) {
   const std::string hex = digest.substr(digest.find(':') + 1, 16);
   return absl::StrFormat("%s-%s", stem.substr(0, 100), hex);
 }
-
-struct JobOutcome {
-  std::string id, target_id, error, request_id, termination;
-  Matrix4 transform = Matrix4::Identity();
-  std::optional<PoseError> pose_error;
-  int iterations = 0, attempts = 0;
-  double seconds = 0.0;
-  std::optional<bool> verified;  // method auto: whether the result verified
-};
 
 bool IsJsonl(const std::string& path) {
   return std::filesystem::path(path).extension() == ".jsonl";
@@ -180,6 +172,8 @@ int RunBatch(const BatchArgs& args) {
            "attempts,request_id,verified\n";
   }
   std::mutex mutex;
+  std::vector<JobOutcome> outcomes;  // for --report
+  const auto batch_start = std::chrono::steady_clock::now();
   std::atomic<std::size_t> next{0};
   std::size_t done = 0, failed = 0;
   ProgressPrinter progress;
@@ -214,6 +208,7 @@ int RunBatch(const BatchArgs& args) {
       std::lock_guard<std::mutex> lock(mutex);
       out << (IsJsonl(args.results) ? JsonRow(o) : CsvRow(o)) << "\n";
       out.flush();
+      if (!args.report.empty()) outcomes.push_back(o);
       ++done;
       failed += !o.error.empty();
       progress.Update(done, jobs.size(),
@@ -226,6 +221,17 @@ int RunBatch(const BatchArgs& args) {
   for (std::thread& t : threads) t.join();
   std::fprintf(stderr, "mlsreg batch: %zu done, %zu failed; results in %s\n", done - failed, failed,
                args.results.c_str());
+  if (!args.report.empty()) {
+    const BatchReportInfo info{
+        args.manifest, std::string(MethodName(options->method)), args.connection.options().address,
+        args.concurrency,
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - batch_start).count()};
+    if (absl::Status s = WriteBatchReport(args.report, info, outcomes); !s.ok()) {
+      std::fprintf(stderr, "mlsreg batch: %s\n", std::string(s.message()).c_str());
+      return 2;
+    }
+    std::fprintf(stderr, "mlsreg batch: report in %s\n", args.report.c_str());
+  }
   return failed == 0 ? 0 : 1;
 }
 
@@ -241,6 +247,9 @@ CommandRunner AddBatchCommand(CLI::App& app) {
   cmd->add_option("--concurrency", args->concurrency, "registrations in flight")
       ->capture_default_str();
   cmd->add_flag("--resume", args->resume, "skip jobs already done in the results file, append");
+  cmd->add_option("--report", args->report,
+                  "write a self-contained HTML report of this run's jobs: failures first, a "
+                  "table, the alpha-recall curve (with ground truth), a latency histogram");
   args->flags.AddTo(*cmd);
   args->connection.AddTo(*cmd, /*server_required=*/true);
   return [args] { return RunBatch(*args); };

@@ -6,6 +6,7 @@
 
 #include "cli/commands.h"
 #include "cli/connection_flags.h"
+#include "cli/convergence_plot.h"
 #include "cli/exit_codes.h"
 #include "cli/registration_flags.h"
 #include "cli/report.h"
@@ -19,7 +20,7 @@ namespace mlsreg::cli {
 namespace {
 
 struct RegisterArgs {
-  std::string source, target, init, gt, json, aligned, merged;
+  std::string source, target, init, gt, json, aligned, merged, plot;
   bool quiet = false;
   double perturb_angle = 0.0, perturb_translation = 0.0;
   std::uint64_t perturb_seed = 1;
@@ -45,9 +46,17 @@ Matrix4 Perturbed(const RegisterArgs& args, const PointCloud& source, const Matr
                         {args.perturb_angle, args.perturb_translation, args.perturb_seed});
 }
 
-// Writes --json, and returns the exit code of a finished registration.
+// Writes --json and --plot, and returns the exit code of a finished registration.
 int Finish(const RegisterArgs& args, const RegistrationOptions& options,
-           const RegistrationResult& result, const std::optional<PoseError>& error) {
+           const RegistrationResult& result, const std::optional<PoseError>& error,
+           const PointCloud& source, const std::optional<Matrix4>& truth) {
+  if (!args.plot.empty()) {
+    if (absl::Status s =
+            WriteConvergencePlot(args.plot, MethodName(options.method), result, source, truth);
+        !s.ok()) {
+      return Fail(s);
+    }
+  }
   if (!args.json.empty()) {
     std::ofstream out(args.json);
     out << ResultJson(MethodName(options.method), result, error).dump(2) << "\n";
@@ -80,7 +89,7 @@ int RunRemote(const RegisterArgs& args, const RegistrationOptions& options,
   auto remote = (*client)->Register(args.target, source, initial, options, truth, on_progress);
   if (!remote.ok()) return Fail(remote.status());
   std::printf("%s", FormatResult(remote->result, remote->ground_truth_error).c_str());
-  return Finish(args, options, remote->result, remote->ground_truth_error);
+  return Finish(args, options, remote->result, remote->ground_truth_error, source, truth);
 }
 
 int RunRegister(const RegisterArgs& args) {
@@ -142,7 +151,7 @@ int RunRegister(const RegisterArgs& args) {
       return Fail(s);
     }
   }
-  return Finish(args, *options, *result, error);
+  return Finish(args, *options, *result, error, *source, truth);
 }
 
 }  // namespace
@@ -168,6 +177,9 @@ CommandRunner AddRegisterCommand(CLI::App& app) {
   cmd->add_option("--merged", args->merged,
                   "write source (orange) and target (blue) in the target's frame as PLY, with "
                   "scalar field cloud (0 source, 1 target)");
+  cmd->add_option("--plot", args->plot,
+                  "draw the convergence as PNG: RMSE/d per iteration (and against --gt), matched "
+                  "and rejected correspondences (needs python3-matplotlib)");
   cmd->add_option("--perturb-angle", args->perturb_angle,
                   "rotate the start pose by this angle (degrees) about a seeded random axis");
   cmd->add_option("--perturb-translation", args->perturb_translation,

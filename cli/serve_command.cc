@@ -57,6 +57,8 @@ CommandRunner AddServeCommand(CLI::App& app) {
   using C = server::ServerConfig;
   Bind(*cmd, *args, "--listen", "MLSREG_LISTEN", &C::listen,
        "HOST:PORT to listen on (port 0: any)");
+  Bind(*cmd, *args, "--metrics-listen", "MLSREG_METRICS_LISTEN", &C::metrics_listen,
+       "HOST:PORT of the Prometheus /metrics endpoint (plain HTTP, no token; port 0: any)");
   Bind(*cmd, *args, "--workers", "MLSREG_WORKERS", &C::workers, "registration threads (0: cores)");
   Bind(*cmd, *args, "--job-threads", "MLSREG_JOB_THREADS", &C::job_threads,
        "threads inside one registration or target build (workers x job threads <= cores)");

@@ -26,7 +26,7 @@ sanitizer_build() {  # DIR SANITIZER FUZZERS TARGETS...
   if [ ! -f "$dir/CMakeCache.txt" ]; then
     CC=clang-14 CXX=clang++-14 cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=Debug \
       -DCMAKE_CXX_FLAGS="-O1 -g" "${launcher[@]}" -DMLSREG_SANITIZE="$sanitizer" \
-      -DMLSREG_BUILD_FUZZERS="$fuzzers" -DMLSREG_BUILD_BENCHMARKS=OFF -DMLSREG_BUILD_TOOLS=OFF
+      -DMLSREG_BUILD_FUZZERS="$fuzzers" -DMLSREG_BUILD_BENCHMARKS=OFF -DMLSREG_BUILD_TOOLS=OFF -DMLSREG_BUILD_PYTHON=OFF
   fi
   cmake --build "$dir" -j "$JOBS" --target "$@"
 }

@@ -255,6 +255,8 @@ class RegisterCall final : public StreamingCall<RegisterReactor> {
     const absl::StatusOr<RegistrationOutcome>& outcome = job.outcome();
     if (!outcome.ok()) return outcome.status();
     const RegistrationResult& result = outcome->result;
+    c_.metrics.RecordRegistration(method_name_, TerminationName(result.termination),
+                                  result.timings.total);
     scope_.add_detail(absl::StrFormat(
         "iterations=%d termination=%s queue_ms=%.1f", result.iterations,
         std::string(TerminationName(result.termination)), outcome->queue_seconds * 1e3));

@@ -53,6 +53,7 @@ grpc::Status RpcScope::Finish(const absl::Status& status) {
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   context_.stats.Record(rpc_, status.code(), seconds);
+  context_.metrics.RecordRequest(rpc_, status.code(), seconds);
   std::string line = absl::StrCat("rpc=", rpc_);
   if (!request_id_.empty()) absl::StrAppend(&line, " request_id=", request_id_);
   if (!target_id_.empty()) absl::StrAppend(&line, " target=", target_id_);

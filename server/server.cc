@@ -112,8 +112,8 @@ absl::StatusOr<std::unique_ptr<MlsregServer>> MlsregServer::Start(const ServerCo
   server->idle_ = std::make_unique<IdleWatchdog>(
       std::chrono::milliseconds(static_cast<std::int64_t>(c.idle_timeout_seconds * 1000.0)));
   server->context_ = std::make_unique<ServiceContext>(ServiceContext{
-      c, *server->cache_, *server->jobs_, server->stats_, *server->auth_, server->state_,
-      *server->inflight_, *server->peer_streams_, *server->idle_, Clock::now()});
+      c, *server->cache_, *server->jobs_, server->stats_, server->metrics_, *server->auth_,
+      server->state_, *server->inflight_, *server->peer_streams_, *server->idle_, Clock::now()});
   server->services_.push_back(NewTargetService(*server->context_));
   server->services_.push_back(NewRegistrationService(*server->context_));
   server->services_.push_back(NewStatsService(*server->context_));
@@ -139,7 +139,42 @@ absl::StatusOr<std::unique_ptr<MlsregServer>> MlsregServer::Start(const ServerCo
   }
   grpc::HealthCheckServiceInterface* health = server->server_->GetHealthCheckService();
   for (const char* name : kServiceNames) health->SetServingStatus(name, true);
+  if (!c.metrics_listen.empty()) {
+    auto endpoint = MetricsEndpoint::Start(c.metrics_listen,
+                                           [raw = server.get()] { return raw->RenderMetrics(); });
+    if (!endpoint.ok()) return endpoint.status();
+    server->metrics_endpoint_ = *std::move(endpoint);
+  }
   return server;
+}
+
+std::string MlsregServer::RenderMetrics() const {
+  MetricsSnapshot s;
+  s.workers = jobs_->workers();
+  s.active_jobs = jobs_->active();
+  s.queue_depth = jobs_->queued();
+  s.queue_capacity = jobs_->queue_capacity();
+  const CacheCounters cache = cache_->counters();
+  s.cache_bytes = cache.bytes;
+  s.cache_budget_bytes = cache.budget_bytes;
+  s.cache_entries = cache.entries;
+  s.cache_hits = cache.hits;
+  s.cache_misses = cache.misses;
+  s.cache_evictions = cache.evictions;
+  s.target_builds = cache.builds;
+  s.target_build_seconds = cache.build_seconds;
+  s.inflight_bytes = inflight_->used();
+  s.inflight_budget_bytes = inflight_->budget();
+  s.open_streams = peer_streams_->open_streams();
+  s.serving = state_.accepting();
+  s.uptime_seconds = std::chrono::duration<double>(Clock::now() - context_->started).count();
+  return metrics_.Render(s);
+}
+
+std::string MlsregServer::metrics_address() const {
+  if (!metrics_endpoint_) return "";
+  const std::string& listen = config_.metrics_listen;
+  return absl::StrCat(listen.substr(0, listen.rfind(':')), ":", metrics_endpoint_->port());
 }
 
 bool MlsregServer::Idle() const {
@@ -199,6 +234,9 @@ int RunServerUntilSignal(const ServerConfig& config) {
     return 1;
   }
   const ServerConfig& c = (*server)->config();
+  if (!(*server)->metrics_address().empty()) {
+    LogLine(absl::StrCat("metrics on http://", (*server)->metrics_address(), "/metrics"));
+  }
   LogLine(absl::StrFormat(
       "server listening on %s (%s, %d workers, queue %d, cache %d MiB%s%s)", (*server)->address(),
       c.tls_cert.empty() ? "plaintext" : (c.tls_client_ca.empty() ? "TLS" : "mutual TLS"),

@@ -11,6 +11,8 @@
 #include "absl/status/statusor.h"
 #include "server/inflight_budget.h"
 #include "server/job_pool.h"
+#include "server/metrics.h"
+#include "server/metrics_endpoint.h"
 #include "server/server_config.h"
 #include "server/service_context.h"
 #include "server/serving_state.h"
@@ -37,6 +39,10 @@ class MlsregServer {
   const ServerConfig& config() const { return config_; }  // resolved (workers, queue) values
   int open_streams() const { return peer_streams_->open_streams(); }  // uploads + registrations
   std::uint64_t inflight_bytes() const { return inflight_->used(); }
+  // The Prometheus exposition served at /metrics (server/metrics.h).
+  std::string RenderMetrics() const;
+  // host:port of the /metrics endpoint (the port actually bound), or "" when not configured.
+  std::string metrics_address() const;
 
   // Graceful stop: health turns NOT_SERVING for every service, new registrations and uploads
   // are refused (UNAVAILABLE), calls in progress get up to drain_seconds to finish; then running
@@ -55,6 +61,7 @@ class MlsregServer {
   std::unique_ptr<TargetCache> cache_;
   std::unique_ptr<JobPool> jobs_;
   RequestStats stats_;
+  ServerMetrics metrics_;
   std::unique_ptr<TokenAuthenticator> auth_;
   ServingState state_;
   std::unique_ptr<InFlightBudget> inflight_;
@@ -62,7 +69,8 @@ class MlsregServer {
   std::unique_ptr<IdleWatchdog> idle_;
   std::unique_ptr<ServiceContext> context_;
   std::vector<std::unique_ptr<grpc::Service>> services_;
-  std::unique_ptr<grpc::Server> server_;  // last: stops before what its handlers use
+  std::unique_ptr<grpc::Server> server_;               // stops before what its handlers use
+  std::unique_ptr<MetricsEndpoint> metrics_endpoint_;  // last: stops before what it reads
   int port_ = 0;
   std::once_flag shutdown_once_;
 };

@@ -59,6 +59,7 @@ FieldSetter Set(const char* key, T ServerConfig::*member) {
 const std::map<std::string, FieldSetter>& Setters() {
   static const auto* setters = new std::map<std::string, FieldSetter>{
       {"listen", Set("listen", &ServerConfig::listen)},
+      {"metrics_listen", Set("metrics_listen", &ServerConfig::metrics_listen)},
       {"workers", Set("workers", &ServerConfig::workers)},
       {"queue_capacity", Set("queue_capacity", &ServerConfig::queue_capacity)},
       {"job_threads", Set("job_threads", &ServerConfig::job_threads)},

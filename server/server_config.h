@@ -13,6 +13,8 @@ namespace mlsreg::server {
 struct ServerConfig {
   // host:port; port 0 picks a free port (MlsregServer::port() tells which).
   std::string listen = "127.0.0.1:50051";
+  // host:port of the Prometheus /metrics endpoint (plain HTTP, no token); empty: none.
+  std::string metrics_listen;
   int workers = 0;         // registration/build threads; 0 = hardware cores
   int queue_capacity = 0;  // jobs waiting for a worker; 0 = 4 * workers
   // Threads inside one registration or target build (keep workers x job_threads <= cores).

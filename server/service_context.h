@@ -6,6 +6,7 @@
 #include "server/auth.h"
 #include "server/inflight_budget.h"
 #include "server/job_pool.h"
+#include "server/metrics.h"
 #include "server/server_config.h"
 #include "server/serving_state.h"
 #include "server/stats.h"
@@ -19,6 +20,7 @@ struct ServiceContext {
   TargetCache& cache;
   JobPool& jobs;
   RequestStats& stats;
+  ServerMetrics& metrics;
   const TokenAuthenticator& auth;
   ServingState& state;
   InFlightBudget& inflight;

@@ -1,5 +1,6 @@
 #include "server/target_cache.h"
 
+#include <chrono>
 #include <optional>
 
 #include "absl/strings/str_cat.h"
@@ -222,9 +223,16 @@ absl::Status TargetCache::WaitToLoadLocked(std::unique_lock<std::mutex>& lock,
   return absl::OkStatus();
 }
 
-void TargetCache::CountBuild() {
+absl::StatusOr<std::shared_ptr<const Target>> TargetCache::TimedBuild(
+    PointCloud cloud, const StopCheck& should_stop) {
+  const auto start = std::chrono::steady_clock::now();
+  auto built = Target::Build(std::move(cloud), BuildOptions(), should_stop);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::lock_guard<std::mutex> lock(mutex_);
   ++builds_;
+  build_seconds_ += seconds;
+  return built;
 }
 
 void TargetCache::FinishLoadingLocked(const std::string& id) {
@@ -253,8 +261,7 @@ absl::StatusOr<TargetInfo> TargetCache::Create(const std::string& id, PointCloud
     }
   }
   absl::StatusOr<TargetInfo> result = [&]() -> absl::StatusOr<TargetInfo> {
-    CountBuild();
-    auto target = Target::Build(std::move(cloud), BuildOptions(), should_stop);
+    auto target = TimedBuild(std::move(cloud), should_stop);
     if (absl::IsCancelled(target.status())) return target.status();
     if (!target.ok()) {
       return absl::InvalidArgumentError(
@@ -310,8 +317,7 @@ absl::StatusOr<std::shared_ptr<const Target>> TargetCache::ReloadAndInsert(
     return absl::DataLossError(
         absl::StrCat("stored target '", id, "' cannot be read: ", cloud.status().message()));
   }
-  CountBuild();
-  auto built = Target::Build(std::move(*cloud), BuildOptions(), should_stop);
+  auto built = TimedBuild(std::move(*cloud), should_stop);
   if (absl::IsCancelled(built.status())) return built.status();
   if (!built.ok()) {
     return absl::DataLossError(
@@ -386,6 +392,7 @@ CacheCounters TargetCache::counters() const {
   c.misses = misses_;
   c.evictions = evictions_;
   c.builds = builds_;
+  c.build_seconds = build_seconds_;
   return c;
 }
 

@@ -35,6 +35,7 @@ struct CacheCounters {
   std::uint64_t misses = 0;     // lookups that had to reload it from the store
   std::uint64_t evictions = 0;  // targets dropped from memory to make room
   std::uint64_t builds = 0;     // targets built (uploads and reloads)
+  double build_seconds = 0.0;   // their wall time, in total
 };
 
 class TargetCache {
@@ -108,7 +109,9 @@ class TargetCache {
   absl::Status WaitToLoadLocked(std::unique_lock<std::mutex>& lock, const std::string& id,
                                 const StopCheck& should_stop);
   void FinishLoadingLocked(const std::string& id);
-  void CountBuild();
+  // Target::Build, counted in builds_ and build_seconds_ (whatever its outcome).
+  absl::StatusOr<std::shared_ptr<const Target>> TimedBuild(PointCloud cloud,
+                                                           const StopCheck& should_stop);
   // Acquire's build: the stored cloud loaded, built and made resident.
   absl::StatusOr<std::shared_ptr<const Target>> ReloadAndInsert(const std::string& id,
                                                                 const StopCheck& should_stop);
@@ -148,6 +151,7 @@ class TargetCache {
   std::condition_variable loaded_;
   std::uint64_t clock_ = 0;
   std::uint64_t hits_ = 0, misses_ = 0, evictions_ = 0, builds_ = 0;
+  double build_seconds_ = 0.0;
 };
 
 }  // namespace mlsreg::server

@@ -153,6 +153,9 @@ class CreateTargetCall final : public StreamingCall<CreateTargetReactor> {
           absl::StatusOr<TargetInfo> built = BuildAndInsert(cache, header, *payload, *cancelled);
           payload->clear();
           payload->shrink_to_fit();
+          // The data is freed (the cloud is in the cache or gone): give its bytes back before
+          // the client hears of it, so a finished upload holds nothing in flight.
+          lease->Shrink(lease->bytes());
           if (auto call = this_call.lock()) call->Built(std::move(built));
         },
         [this_call = weak](absl::Status s) {
@@ -191,7 +194,7 @@ class CreateTargetCall final : public StreamingCall<CreateTargetReactor> {
   v1::CreateTargetHeader header_;
   std::optional<wire::PayloadAssembler> payload_;
   // The bytes this call holds: its data as it arrives, then its decoded cloud; shared with the
-  // build, so held until it ends.
+  // build, which gives them back when it ends.
   std::shared_ptr<InFlightBudget::Lease> lease_ =
       std::make_shared<InFlightBudget::Lease>(&c_.inflight);
   std::shared_ptr<std::atomic<bool>> cancelled_ = std::make_shared<std::atomic<bool>>(false);

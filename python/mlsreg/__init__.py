@@ -1,0 +1,319 @@
+"""mlsreg: rigid registration of overlapping 3-D scans with MLS correspondences in Sparse ICP.
+
+Local registration::
+
+    import mlsreg, numpy as np
+    source = mlsreg.read_cloud("bun000.ply")
+    target = mlsreg.Target(mlsreg.read_cloud("bun045.ply").points)   # built once, reused
+    result = mlsreg.register(source, target, init=np.eye(4))          # method "auto"
+    result.transform                                                  # 4x4 ndarray
+
+Clouds are NumPy arrays of shape (N, 3) or (N, 6) (points and normals), an mlsreg.Cloud, or an
+open3d.geometry.PointCloud. Registration parameters are keyword arguments named as in the
+library's parameter table (``mlsreg.parameters()``), with its defaults and ranges.
+
+Remote registration goes through ``mlsreg.Client`` (the C++ client library: retries, replica
+routing, chunked uploads).
+
+Errors: bad input raises ValueError with the library's message; an unknown target LookupError;
+everything else mlsreg.Error (``.code`` is the status code's name).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import queue
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, Callable, Iterator, Optional, Sequence
+
+import numpy as np
+
+from . import _mlsreg
+from ._mlsreg import Error, Target, methods, parameters
+
+__all__ = [
+    "Cloud", "Target", "IterationReport", "Result", "PoseError", "BatchOutcome", "Client",
+    "RegistrationStream", "Error", "read_cloud", "register", "evaluate", "methods", "parameters",
+    "TRACE_DTYPE",
+]
+
+__version__ = "0.1.0"
+
+
+@dataclasses.dataclass
+class Cloud:
+    """A scan read from a file: points (N, 3) float64, normals (N, 3) or None, and metadata."""
+
+    points: np.ndarray
+    normals: Optional[np.ndarray] = None
+    viewpoint: Optional[np.ndarray] = None  # the sensor origin, when the file says
+    intrinsics: Optional[dict] = None  # pinhole camera of an organised scan
+    path: Optional[str] = None
+
+    @property
+    def array(self) -> np.ndarray:
+        """(N, 6) points and normals when there are normals, else (N, 3) points."""
+        if self.normals is None:
+            return self.points
+        return np.hstack([self.points, self.normals])
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    def __array__(self, dtype=None):
+        return self.array if dtype is None else self.array.astype(dtype)
+
+
+def read_cloud(path: str) -> Cloud:
+    """Reads a .ply, .pcd, .xyz/.txt/.csv or .npy cloud (with normals and metadata if present)."""
+    return Cloud(path=str(path), **_mlsreg.read_cloud(str(path)))
+
+
+@dataclasses.dataclass
+class IterationReport:
+    """One ICP iteration, as the progress callback and stream see it."""
+
+    iteration: int
+    stage: str  # "single", or for method auto "start", "global", "candidate", "final"
+    candidate: int  # auto: the candidate refined, else -1
+    rmse: float  # of this iteration's accepted correspondences, absolute units
+    rmse_d: float  # the same in units of the target's sampling distance d
+    matched: int
+    rejected_normal: int
+    rejected_curvature: int
+    rejected_distance: int
+    invalid: int
+    admm_iterations: int
+    elapsed_seconds: float
+    transform: np.ndarray
+
+
+TRACE_DTYPE = np.dtype([
+    ("iteration", np.int32), ("stage", "U9"), ("candidate", np.int32), ("rmse", np.float64),
+    ("rmse_d", np.float64), ("matched", np.int32), ("rejected_normal", np.int32),
+    ("rejected_curvature", np.int32), ("rejected_distance", np.int32), ("invalid", np.int32),
+    ("admm_iterations", np.int32), ("elapsed_seconds", np.float64),
+])
+
+
+def _trace_array(rows: Sequence[dict]) -> np.ndarray:
+    names = TRACE_DTYPE.names
+    return np.array([tuple(row[n] for n in names) for row in rows], dtype=TRACE_DTYPE)
+
+
+@dataclasses.dataclass
+class PoseError:
+    """A transform against ground truth (paper Eq. 10): RMSE over the source in units of d."""
+
+    rmse_d: float
+    success: bool  # rmse_d below the threshold (5 d by default)
+    rotation_deg: float
+    translation_d: float
+
+
+@dataclasses.dataclass
+class Result:
+    """A registration's result. ``trace`` is a structured array (TRACE_DTYPE), one row per
+    iteration; ``auto`` is method auto's report (candidates, verification, stage times)."""
+
+    transform: np.ndarray
+    converged: bool
+    termination: str  # "converged", "max_iterations", "cancelled", "too_few_correspondences"
+    iterations: int
+    trace: np.ndarray
+    timings: dict
+    sampling_distance: float
+    num_samples: int
+    mls_radius_d: float
+    mls_radius_auto: bool
+    target_noise_d: float
+    source_noise_d: float
+    auto: Optional[dict]
+    method: str
+    # Remote registrations only:
+    request_id: Optional[str] = None
+    queue_seconds: Optional[float] = None
+    attempts: Optional[int] = None
+    ground_truth_error: Optional[PoseError] = None
+    source: Optional[Any] = dataclasses.field(default=None, repr=False)
+
+    @property
+    def verified(self) -> Optional[bool]:
+        """Method auto: whether the result verified against the target's MLS surface."""
+        return None if self.auto is None else bool(self.auto["verified"])
+
+
+def _result(raw: dict, method: str, source) -> Result:
+    raw = dict(raw)
+    raw["trace"] = _trace_array(raw["trace"])
+    gt = raw.pop("ground_truth_error", None)
+    fields = {f.name for f in dataclasses.fields(Result)}
+    result = Result(method=method, source=source,
+                    ground_truth_error=PoseError(**gt) if gt else None,
+                    **{k: v for k, v in raw.items() if k in fields})
+    return result
+
+
+def _adapt(callback: Optional[Callable[[IterationReport], Any]]):
+    if callback is None:
+        return None
+    return lambda report: callback(IterationReport(**report))
+
+
+def register(source, target, method: str = "auto", init=None,
+             callback: Optional[Callable[[IterationReport], Any]] = None, threads: int = 1,
+             **params) -> Result:
+    """Registers ``source`` to ``target`` (source -> target, rigid) from ``init`` (4x4, default
+    identity).
+
+    ``source`` and ``target`` are (N, 3) or (N, 6) arrays, Clouds or Open3D point clouds; pass a
+    ``Target`` to reuse a target's prepared surface. ``callback(report)`` is called after every
+    iteration; returning False cancels (the result then says ``termination == "cancelled"``).
+    ``params`` are the parameter table's names (``mlsreg.parameters()``); None means auto.
+    The GIL is released while registering.
+    """
+    raw = _mlsreg._register(source, target, method, init, _adapt(callback), threads, params)
+    return _result(raw, method, source)
+
+
+def evaluate(result: Result, gt, source=None, success_threshold_d: float = 5.0) -> PoseError:
+    """The result's error against the ground-truth transform ``gt``, over the source's points
+    (the registered source unless given) in units of the target's d."""
+    source = result.source if source is None else source
+    if source is None:
+        raise ValueError("source: the result does not hold its source; pass source=")
+    return PoseError(**_mlsreg._evaluate(source, result.transform, gt, result.sampling_distance,
+                                         success_threshold_d))
+
+
+@dataclasses.dataclass
+class BatchOutcome:
+    """One job of Client.register_batch: its result, or the exception it raised."""
+
+    job: dict
+    result: Optional[Result] = None
+    error: Optional[BaseException] = None
+
+    @property
+    def ok(self) -> bool:
+        return self.error is None
+
+
+class RegistrationStream:
+    """A served registration as an iterator of IterationReports; ``result()`` waits for the end
+    and returns the Result (or raises the call's error); ``cancel()`` stops it."""
+
+    _END = object()
+
+    def __init__(self, run: Callable[[Callable], Result]):
+        self._queue: "queue.Queue" = queue.Queue()
+        self._cancelled = threading.Event()
+        self._result: Optional[Result] = None
+        self._error: Optional[BaseException] = None
+
+        def on_progress(report: IterationReport):
+            self._queue.put(report)
+            return not self._cancelled.is_set()
+
+        def body():
+            try:
+                self._result = run(on_progress)
+            except BaseException as e:  # handed to the caller in result()
+                self._error = e
+            finally:
+                self._queue.put(self._END)
+
+        self._thread = threading.Thread(target=body, daemon=True)
+        self._thread.start()
+
+    def __iter__(self) -> Iterator[IterationReport]:
+        return self
+
+    def __next__(self) -> IterationReport:
+        item = self._queue.get()
+        if item is self._END:
+            self._queue.put(self._END)  # later calls end too
+            raise StopIteration
+        return item
+
+    def cancel(self) -> None:
+        self._cancelled.set()
+
+    def result(self, timeout: Optional[float] = None) -> Result:
+        self._thread.join(timeout)
+        if self._thread.is_alive():
+            raise TimeoutError("the registration is still running")
+        if self._error is not None:
+            raise self._error
+        return self._result
+
+
+class Client:
+    """A client of one or more mlsreg servers (``"host:port"``, ``"a:1,b:2"`` replicas, or
+    ``"dns:///NAME:PORT"``), over the C++ client library: transient failures are retried with
+    backoff, targets are routed to their replica and re-uploaded when a replica lost them."""
+
+    def __init__(self, address: str = "127.0.0.1:50051", token: Optional[str] = None,
+                 tls: bool = False, ca_cert: str = "", client_cert: str = "",
+                 client_key: str = "", deadline_seconds: float = 600.0, max_attempts: int = 5,
+                 float32: bool = False):
+        self._client = _mlsreg._Client(address, token or "", tls, ca_cert, client_cert,
+                                       client_key, deadline_seconds, max_attempts, float32)
+
+    def upload_target(self, target_id: str, cloud) -> dict:
+        """Uploads a cloud as target ``target_id`` (idempotent for the same content)."""
+        return self._client.upload_target(target_id, cloud)
+
+    def get_target(self, target_id: str) -> dict:
+        return self._client.get_target(target_id)
+
+    def list_targets(self) -> list:
+        return self._client.list_targets()
+
+    def delete_target(self, target_id: str) -> None:
+        self._client.delete_target(target_id)
+
+    def health(self, replica: int = 0) -> str:
+        return self._client.health(replica)
+
+    def stats(self, replica: int = 0) -> dict:
+        return json.loads(self._client.stats_json(replica))
+
+    @property
+    def replicas(self) -> list:
+        return self._client.replicas()
+
+    def register(self, target_id: str, source, method: str = "auto", init=None, gt=None,
+                 callback: Optional[Callable[[IterationReport], Any]] = None, **params) -> Result:
+        """Registers ``source`` against the server's target ``target_id``; as mlsreg.register,
+        with ``gt`` (optional) evaluated on the server."""
+        raw = self._client.register(target_id, source, method, init, gt, _adapt(callback), params)
+        return _result(raw, method, source)
+
+    def stream(self, target_id: str, source, method: str = "auto", init=None, gt=None,
+               **params) -> RegistrationStream:
+        """A served registration as an iterator of progress reports::
+
+            stream = client.stream("bunny", source)
+            for report in stream:
+                print(report.iteration, report.rmse_d)
+            result = stream.result()
+        """
+        return RegistrationStream(lambda on_progress: self.register(
+            target_id, source, method, init, gt, on_progress, **params))
+
+    def register_batch(self, jobs: Sequence[dict], concurrency: int = 4) -> list:
+        """Runs jobs concurrently, each a dict of Client.register's arguments (``target_id``,
+        ``source``, and optionally ``method``, ``init``, ``gt`` and parameters). Returns one
+        BatchOutcome per job, in order; a failed job holds its exception."""
+
+        def run(job: dict) -> BatchOutcome:
+            try:
+                return BatchOutcome(job=job, result=self.register(**job))
+            except Exception as e:  # reported per job
+                return BatchOutcome(job=job, error=e)
+
+        with ThreadPoolExecutor(max_workers=max(1, concurrency)) as pool:
+            return list(pool.map(run, jobs))

@@ -1,0 +1,307 @@
+// _mlsreg: the C++ side of the Python package (python/mlsreg/__init__.py wraps it). Every call
+// into the library runs without the GIL, so Python threads register in parallel.
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include "absl/strings/str_cat.h"
+#include "mlsreg/client/client.h"
+#include "mlsreg/evaluation/metrics.h"
+#include "mlsreg/geometry/target.h"
+#include "mlsreg/io/io.h"
+#include "mlsreg/registration/method.h"
+#include "mlsreg/registration/parameters.h"
+#include "mlsreg/registration/registration.h"
+#include "python/src/callback_bridge.h"
+#include "python/src/cloud_arrays.h"
+#include "python/src/registration_arguments.h"
+#include "python/src/status_errors.h"
+
+namespace mlsreg::python {
+namespace {
+
+using TargetPtr = std::shared_ptr<const Target>;
+
+// A Target built once from Python data and reused by every registration against it.
+struct TargetHandle {
+  TargetPtr target;
+};
+
+TargetPtr BuildTarget(PointCloud cloud, int threads) {
+  TargetOptions options;
+  options.threads = threads;
+  absl::StatusOr<TargetPtr> built;
+  {
+    py::gil_scoped_release release;
+    built = Target::Build(std::move(cloud), options);
+  }
+  if (!built.ok()) {
+    throw StatusError(
+        absl::Status(built.status().code(), absl::StrCat("target: ", built.status().message())));
+  }
+  return *std::move(built);
+}
+
+TargetHandle MakeTarget(py::object points, py::object normals, py::object intrinsics, int threads) {
+  PointCloud cloud = normals.is_none() ? CloudFromPython(points, "target")
+                                       : CloudFromArrays(points, normals, "target");
+  if (!intrinsics.is_none()) cloud.intrinsics = IntrinsicsFromPython(intrinsics, "intrinsics");
+  return TargetHandle{BuildTarget(std::move(cloud), threads)};
+}
+
+TargetPtr TargetFromPython(py::handle target, int threads) {
+  if (py::isinstance<TargetHandle>(target)) return target.cast<const TargetHandle&>().target;
+  return BuildTarget(CloudFromPython(target, "target"), threads);
+}
+
+py::dict Register(py::object source, py::object target, const std::string& method, py::object init,
+                  py::object callback, int threads, const py::dict& params) {
+  const RegistrationOptions options = OptionsFromPython(method, params);
+  const Matrix4 initial = TransformFromPython(init, "init");
+  PointCloud source_cloud = CloudFromPython(source, "source");
+  const TargetPtr built = TargetFromPython(target, threads);
+  CallbackBridge bridge(std::move(callback));
+  absl::StatusOr<RegistrationResult> result;
+  {
+    py::gil_scoped_release release;
+    ExecutionOptions execution;
+    execution.threads = threads;
+    result =
+        mlsreg::Register(*built, source_cloud, initial, options, bridge.Callbacks(), execution);
+  }
+  bridge.RaiseIfFailed();
+  return ResultToPython(ValueOrThrow(std::move(result)));
+}
+
+py::dict PoseErrorToPython(const PoseError& e) {
+  return py::dict(py::arg("rmse_d") = e.rmse_d, py::arg("success") = e.success,
+                  py::arg("rotation_deg") = e.rotation_deg,
+                  py::arg("translation_d") = e.translation_d);
+}
+
+py::dict TargetInfoToPython(const TargetInfo& info) {
+  return py::dict(
+      py::arg("id") = info.id,
+      py::arg("state") = std::string(TargetStateNames().NameOf(static_cast<int>(info.state))),
+      py::arg("point_count") = info.point_count, py::arg("memory_bytes") = info.memory_bytes,
+      py::arg("sampling_distance") = info.sampling_distance,
+      py::arg("build_seconds") = info.build_seconds, py::arg("registrations") = info.registrations,
+      py::arg("noise_sigma_d") = info.noise_sigma_d,
+      py::arg("has_intrinsics") = info.has_intrinsics, py::arg("digest") = info.digest);
+}
+
+void BindLocal(py::module_& m) {
+  m.def(
+      "read_cloud",
+      [](const std::string& path) {
+        absl::StatusOr<PointCloud> cloud;
+        {
+          py::gil_scoped_release release;
+          cloud = ReadPointCloud(path);
+        }
+        return CloudToPython(ValueOrThrow(std::move(cloud)));
+      },
+      py::arg("path"));
+
+  py::class_<TargetHandle>(m, "Target")
+      .def(py::init(&MakeTarget), py::arg("points"), py::arg("normals") = py::none(),
+           py::arg("intrinsics") = py::none(), py::arg("threads") = 1)
+      .def_property_readonly("size",
+                             [](const TargetHandle& t) { return t.target->points().size(); })
+      .def("__len__", [](const TargetHandle& t) { return t.target->points().size(); })
+      .def_property_readonly("points",
+                             [](const TargetHandle& t) { return ToArray(t.target->points()); })
+      .def_property_readonly(
+          "normals", [](const TargetHandle& t) { return ToArray(t.target->surface().normals); })
+      .def_property_readonly("sampling_distance",
+                             [](const TargetHandle& t) { return t.target->sampling_distance(); })
+      .def_property_readonly("noise_sigma_d",
+                             [](const TargetHandle& t) { return t.target->noise().sigma_d; })
+      .def_property_readonly("memory_bytes",
+                             [](const TargetHandle& t) { return t.target->MemoryBytes(); })
+      .def_property_readonly("build_seconds",
+                             [](const TargetHandle& t) { return t.target->build_seconds(); })
+      .def_property_readonly("organised",
+                             [](const TargetHandle& t) { return t.target->grid() != nullptr; })
+      .def("__repr__", [](const TargetHandle& t) {
+        return py::str("mlsreg.Target({} points, d={:.6g}, noise={:.3g} d)")
+            .format(t.target->points().size(), t.target->sampling_distance(),
+                    t.target->noise().sigma_d);
+      });
+
+  m.def("_register", &Register, py::arg("source"), py::arg("target"), py::arg("method"),
+        py::arg("init"), py::arg("callback"), py::arg("threads"), py::arg("params"));
+
+  m.def(
+      "_evaluate",
+      [](py::object source, py::object estimate, py::object truth, double d, double threshold) {
+        const PointCloud cloud = CloudFromPython(source, "source");
+        return PoseErrorToPython(EvaluatePose(cloud.points, TransformFromPython(estimate, "result"),
+                                              TransformFromPython(truth, "gt"), d, threshold));
+      },
+      py::arg("source"), py::arg("estimate"), py::arg("truth"), py::arg("sampling_distance"),
+      py::arg("success_threshold_d"));
+
+  m.def("methods", [] {
+    py::list names;
+    for (const MethodSpec& spec : MethodTable()) names.append(std::string(spec.name));
+    return names;
+  });
+  m.def("parameters", [] {
+    const RegistrationOptions defaults;
+    py::list rows;
+    for (const ParameterSpec& spec : ParameterTable()) {
+      rows.append(py::dict(
+          py::arg("name") = std::string(spec.wire_field), py::arg("path") = std::string(spec.name),
+          py::arg("default") = spec.Format(spec.get(defaults)), py::arg("rule") = spec.Rule(),
+          py::arg("help") = std::string(spec.help)));
+    }
+    return rows;
+  });
+}
+
+void BindClient(py::module_& m) {
+  using client::Client;
+  py::class_<Client>(m, "_Client")
+      .def(py::init([](const std::string& address, const std::string& token, bool tls,
+                       const std::string& ca_cert, const std::string& client_cert,
+                       const std::string& client_key, double deadline_seconds, int max_attempts,
+                       bool float32) {
+             client::ClientOptions options;
+             options.address = address;
+             options.token = token;
+             options.tls = tls;
+             options.ca_cert = ca_cert;
+             options.client_cert = client_cert;
+             options.client_key = client_key;
+             options.deadline_seconds = deadline_seconds;
+             options.max_attempts = max_attempts;
+             options.float32 = float32;
+             py::gil_scoped_release release;
+             return ValueOrThrow(Client::Connect(options));
+           }),
+           py::arg("address"), py::arg("token"), py::arg("tls"), py::arg("ca_cert"),
+           py::arg("client_cert"), py::arg("client_key"), py::arg("deadline_seconds"),
+           py::arg("max_attempts"), py::arg("float32"))
+      .def("upload_target",
+           [](Client& c, const std::string& id, py::object cloud) {
+             auto shared = std::make_shared<const PointCloud>(CloudFromPython(cloud, "cloud"));
+             py::gil_scoped_release release;
+             TargetInfo info = ValueOrThrow(c.UploadTarget(id, shared));
+             py::gil_scoped_acquire gil;
+             return TargetInfoToPython(info);
+           })
+      .def("get_target",
+           [](Client& c, const std::string& id) {
+             absl::StatusOr<TargetInfo> info;
+             {
+               py::gil_scoped_release release;
+               info = c.GetTarget(id);
+             }
+             return TargetInfoToPython(ValueOrThrow(std::move(info)));
+           })
+      .def("list_targets",
+           [](Client& c) {
+             absl::StatusOr<std::vector<TargetInfo>> infos;
+             {
+               py::gil_scoped_release release;
+               infos = c.ListTargets();
+             }
+             py::list out;
+             for (const TargetInfo& info : ValueOrThrow(std::move(infos))) {
+               out.append(TargetInfoToPython(info));
+             }
+             return out;
+           })
+      .def("delete_target",
+           [](Client& c, const std::string& id) {
+             absl::Status s;
+             {
+               py::gil_scoped_release release;
+               s = c.DeleteTarget(id);
+             }
+             ThrowIfError(s);
+           })
+      .def("health",
+           [](Client& c, std::size_t replica) {
+             absl::StatusOr<client::ServerHealth> h;
+             {
+               py::gil_scoped_release release;
+               h = c.Health(replica);
+             }
+             return ValueOrThrow(std::move(h)).status;
+           })
+      .def("stats_json",
+           [](Client& c, std::size_t replica) {
+             absl::StatusOr<std::string> s;
+             {
+               py::gil_scoped_release release;
+               s = c.StatsJson(replica);
+             }
+             return ValueOrThrow(std::move(s));
+           })
+      .def("replicas", &Client::replicas)
+      .def("replica_for", &Client::ReplicaFor)
+      .def("register", [](Client& c, const std::string& target_id, py::object source,
+                          const std::string& method, py::object init, py::object gt,
+                          py::object callback, const py::dict& params) {
+        const RegistrationOptions options = OptionsFromPython(method, params);
+        const Matrix4 initial = TransformFromPython(init, "init");
+        std::optional<Matrix4> truth;
+        if (!gt.is_none()) truth = TransformFromPython(gt, "gt");
+        const PointCloud cloud = CloudFromPython(source, "source");
+        CallbackBridge bridge(std::move(callback));
+        absl::StatusOr<client::RemoteRegistrationResult> remote;
+        {
+          py::gil_scoped_release release;
+          remote = c.Register(
+              target_id, cloud, initial, options, truth,
+              [&bridge](const IterationReport& r) { bridge.OnIteration(r); }, bridge.stop_flag());
+        }
+        bridge.RaiseIfFailed();
+        client::RemoteRegistrationResult r = ValueOrThrow(std::move(remote));
+        py::dict out = ResultToPython(r.result);
+        out["request_id"] = r.request_id;
+        out["queue_seconds"] = r.queue_seconds;
+        out["attempts"] = r.attempts;
+        out["ground_truth_error"] = r.ground_truth_error
+                                        ? py::object(PoseErrorToPython(*r.ground_truth_error))
+                                        : py::none();
+        return out;
+      });
+}
+
+}  // namespace
+}  // namespace mlsreg::python
+
+PYBIND11_MODULE(_mlsreg, m) {
+  using namespace mlsreg::python;
+  m.doc() = "mlsreg's C++ core; use the mlsreg package.";
+  static py::exception<StatusError> error(m, "Error", PyExc_RuntimeError);
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const StatusError& e) {
+      const std::string message(e.status().message());
+      switch (e.status().code()) {
+        case absl::StatusCode::kInvalidArgument:
+        case absl::StatusCode::kOutOfRange:
+        case absl::StatusCode::kFailedPrecondition:
+          PyErr_SetString(PyExc_ValueError, message.c_str());
+          return;
+        case absl::StatusCode::kNotFound:
+          PyErr_SetString(PyExc_LookupError, message.c_str());
+          return;
+        default: {
+          py::object instance = py::reinterpret_borrow<py::object>(error)(message);
+          instance.attr("code") = absl::StatusCodeToString(e.status().code());
+          PyErr_SetObject(error.ptr(), instance.ptr());
+          return;
+        }
+      }
+    }
+  });
+  BindLocal(m);
+  BindClient(m);
+}

@@ -1,0 +1,127 @@
+#include "python/src/registration_arguments.h"
+
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
+
+#include <string>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "mlsreg/registration/method.h"
+#include "mlsreg/registration/parameters.h"
+#include "python/src/status_errors.h"
+
+namespace mlsreg::python {
+namespace {
+
+const ParameterSpec* FindByPythonName(std::string_view name) {
+  for (const ParameterSpec& spec : ParameterTable()) {
+    if (spec.wire_field == name || spec.name == name) return &spec;
+  }
+  return nullptr;
+}
+
+// The value as the table's text form, so that parsing, ranges and messages are the library's.
+std::string ParameterText(py::handle value) {
+  if (value.is_none()) return "auto";
+  if (py::isinstance<py::bool_>(value)) return value.cast<bool>() ? "true" : "false";
+  if (py::isinstance<py::str>(value)) return value.cast<std::string>();
+  if (py::isinstance<py::float_>(value)) return py::repr(value).cast<std::string>();
+  return py::str(value).cast<std::string>();  // ints, NumPy scalars
+}
+
+py::dict ScoreToPython(const VerificationScore& s) {
+  return py::dict(py::arg("samples") = s.samples, py::arg("inliers") = s.inliers,
+                  py::arg("inlier_fraction") = s.inlier_fraction, py::arg("rmse_d") = s.rmse_d,
+                  py::arg("inlier_distance_d") = s.inlier_distance_d);
+}
+
+py::dict AutoToPython(const AutoReport& report) {
+  py::list candidates;
+  for (const AutoCandidate& c : report.candidates) {
+    candidates.append(py::dict(
+        py::arg("origin") = std::string(CandidateOriginName(c.origin)),
+        py::arg("start") = Matrix4(c.start), py::arg("refined") = Matrix4(c.refined),
+        py::arg("feature_inliers") = c.feature_inliers, py::arg("iterations") = c.iterations,
+        py::arg("score") = ScoreToPython(c.score), py::arg("seconds") = c.seconds));
+  }
+  const AutoStageTimings& t = report.timings;
+  return py::dict(py::arg("candidates") = candidates, py::arg("chosen") = report.chosen,
+                  py::arg("verified") = report.verified,
+                  py::arg("verification") = ScoreToPython(report.verification),
+                  py::arg("early_exit") = report.early_exit,
+                  py::arg("feature_matches") = report.feature_matches,
+                  py::arg("timings") =
+                      py::dict(py::arg("start") = t.start, py::arg("global") = t.global,
+                               py::arg("candidates") = t.candidates, py::arg("final") = t.final));
+}
+
+}  // namespace
+
+RegistrationOptions OptionsFromPython(std::string_view method, const py::dict& params) {
+  RegistrationOptions options;
+  options.method = ValueOrThrow(ParseMethod(method));
+  for (const auto& [key, value] : params) {
+    const std::string name = py::str(key).cast<std::string>();
+    const ParameterSpec* spec = FindByPythonName(name);
+    if (spec == nullptr) {
+      std::vector<std::string> names;
+      for (const ParameterSpec& s : ParameterTable()) names.emplace_back(s.wire_field);
+      throw StatusError(absl::InvalidArgumentError(
+          absl::StrCat(name, ": not a registration parameter; the parameters are ",
+                       absl::StrJoin(names, ", "))));
+    }
+    spec->set(options, ValueOrThrow(spec->Parse(ParameterText(value), name)));
+  }
+  return options;
+}
+
+Matrix4 TransformFromPython(py::handle object, std::string_view field) {
+  if (object.is_none()) return Matrix4::Identity();
+  py::array array = py::module_::import("numpy").attr("asarray")(object);
+  if (array.dtype().kind() != 'f' && array.dtype().kind() != 'i') {
+    throw StatusError(absl::InvalidArgumentError(
+        absl::StrCat(std::string(field), ": a 4x4 array of numbers is needed")));
+  }
+  if (array.ndim() != 2 || array.shape(0) != 4 || array.shape(1) != 4) {
+    throw StatusError(
+        absl::InvalidArgumentError(absl::StrCat(std::string(field), ": the shape must be (4, 4)")));
+  }
+  const Matrix4 m = array.cast<Matrix4>();
+  ThrowIfError(CheckRigid(m, field));
+  return Orthonormalize(m);
+}
+
+py::dict ReportToPython(const IterationReport& r) {
+  return py::dict(
+      py::arg("iteration") = r.iteration, py::arg("stage") = std::string(StageName(r.stage)),
+      py::arg("candidate") = r.candidate, py::arg("rmse") = r.rmse, py::arg("rmse_d") = r.rmse_d,
+      py::arg("matched") = r.counts.matched, py::arg("rejected_normal") = r.counts.rejected_normal,
+      py::arg("rejected_curvature") = r.counts.rejected_curvature,
+      py::arg("rejected_distance") = r.counts.rejected_distance,
+      py::arg("invalid") = r.counts.invalid, py::arg("admm_iterations") = r.admm_iterations,
+      py::arg("elapsed_seconds") = r.elapsed_seconds, py::arg("transform") = Matrix4(r.transform));
+}
+
+py::dict ResultToPython(const RegistrationResult& result) {
+  py::list trace;
+  for (const IterationReport& r : result.trace) trace.append(ReportToPython(r));
+  const PhaseTimings& t = result.timings;
+  py::dict d(
+      py::arg("transform") = Matrix4(result.transform), py::arg("converged") = result.converged,
+      py::arg("termination") = std::string(TerminationName(result.termination)),
+      py::arg("iterations") = result.iterations, py::arg("trace") = trace,
+      py::arg("timings") =
+          py::dict(py::arg("preprocessing") = t.preprocessing,
+                   py::arg("subsampling") = t.subsampling, py::arg("matching") = t.matching,
+                   py::arg("optimisation") = t.optimisation, py::arg("total") = t.total),
+      py::arg("sampling_distance") = result.sampling_distance,
+      py::arg("num_samples") = result.num_samples, py::arg("mls_radius_d") = result.mls_radius_d,
+      py::arg("mls_radius_auto") = result.mls_radius_auto,
+      py::arg("target_noise_d") = result.target_noise_d,
+      py::arg("source_noise_d") = result.source_noise_d);
+  d["auto"] = result.auto_report ? py::object(AutoToPython(*result.auto_report)) : py::none();
+  return d;
+}
+
+}  // namespace mlsreg::python

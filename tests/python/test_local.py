@@ -1,0 +1,235 @@
+"""The Python package in-process: reading clouds, targets, registration, parameters, the
+callback, errors, threads and evaluation."""
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import mlsreg
+from conftest import BUNNY, perturbed
+
+
+# ---- reading clouds
+
+def test_read_cloud_gives_points_and_metadata(bun000):
+    assert bun000.points.shape == (40256, 3)
+    assert bun000.points.dtype == np.float64
+    assert bun000.normals is None
+    assert bun000.path.endswith("bun000.ply")
+    assert np.asarray(bun000).shape == (40256, 3)
+
+
+def test_every_written_format_reads_back_the_same_points(tmp_path, bun000):
+    points = bun000.points[:500]
+    normals = np.tile([0.0, 0.0, 1.0], (500, 1))
+    np.savetxt(tmp_path / "a.xyz", points, fmt="%.17g")
+    np.save(tmp_path / "b.npy", np.hstack([points, normals]))
+    xyz = mlsreg.read_cloud(tmp_path / "a.xyz")
+    npy = mlsreg.read_cloud(tmp_path / "b.npy")
+    np.testing.assert_array_equal(xyz.points, points)
+    np.testing.assert_array_equal(npy.points, points)
+    np.testing.assert_array_equal(npy.normals, normals)
+    assert npy.array.shape == (500, 6)
+
+
+def test_read_cloud_errors_name_the_path(tmp_path):
+    with pytest.raises(LookupError, match="nope.ply"):
+        mlsreg.read_cloud(tmp_path / "nope.ply")
+    (tmp_path / "x.abc").write_text("1 2 3\n")
+    with pytest.raises(ValueError, match="abc"):
+        mlsreg.read_cloud(tmp_path / "x.abc")
+
+
+# ---- registration
+
+def test_register_recovers_the_ground_truth(bun000, bunny_target, gt, near_start):
+    result = mlsreg.register(bun000, bunny_target, init=near_start)
+    error = mlsreg.evaluate(result, gt)
+    # The Stanford ground truth is good to about 0.5 d; MLS-SICP lands within it.
+    assert error.success and error.rmse_d < 1.0 and error.rotation_deg < 0.5
+    assert result.method == "auto" and result.verified is True
+    assert result.transform.shape == (4, 4)
+    assert result.termination == "converged" and result.converged
+    assert result.timings["total"] > 0
+    assert result.sampling_distance == pytest.approx(bunny_target.sampling_distance)
+    assert result.auto["early_exit"] and len(result.auto["candidates"]) == 1
+
+
+def test_the_trace_is_a_structured_array_of_every_iteration(bun000, bunny_target, near_start):
+    result = mlsreg.register(bun000, bunny_target, method="mls-sicp", init=near_start)
+    trace = result.trace
+    assert trace.dtype == mlsreg.TRACE_DTYPE
+    assert len(trace) == result.iterations
+    np.testing.assert_array_equal(trace["iteration"], np.arange(1, result.iterations + 1))
+    assert (trace["stage"] == "single").all()
+    assert (trace["matched"] > 0).all() and np.all(np.diff(trace["elapsed_seconds"]) >= 0)
+    assert result.auto is None and result.verified is None
+
+
+def test_a_target_array_and_a_prepared_target_give_the_same_transform(bun000, bun045,
+                                                                      bunny_target, near_start):
+    prepared = mlsreg.register(bun000, bunny_target, method="cp-sicp", init=near_start)
+    raw = mlsreg.register(bun000.points, bun045.points, method="cp-sicp", init=near_start)
+    np.testing.assert_array_equal(prepared.transform, raw.transform)
+
+
+def test_open3d_clouds_register_and_transform(bun000, bun045, gt, near_start):
+    o3d = pytest.importorskip("open3d")
+    source = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(bun000.points))
+    target = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(bun045.points))
+    result = mlsreg.register(source, target, method="mls-sicp", init=near_start)
+    assert mlsreg.evaluate(result, gt, source=bun000.points).success
+    moved = o3d.geometry.PointCloud(source).transform(result.transform)
+    expected = bun000.points @ result.transform[:3, :3].T + result.transform[:3, 3]
+    np.testing.assert_allclose(np.asarray(moved.points), expected, atol=1e-12)
+
+
+# ---- parameters
+
+def test_parameters_are_the_tables_names_with_its_defaults():
+    rows = {row["name"]: row for row in mlsreg.parameters()}
+    assert rows["max_iterations"]["default"].isdigit()
+    assert rows["mls_radius_d"]["path"] == "mls.radius_d"
+    assert rows["mls_radius_d"]["default"] == "auto"
+    assert "auto" in mlsreg.methods() and "mls-sicp" in mlsreg.methods()
+
+
+def test_parameters_change_the_registration(bun000, bunny_target, near_start):
+    result = mlsreg.register(bun000, bunny_target, method="mls-sicp", init=near_start,
+                             max_iterations=3, mls_radius_d=None, sicp_p=0.5)
+    assert result.iterations == 3 and result.termination == "max_iterations"
+    assert result.mls_radius_auto
+    fixed = mlsreg.register(bun000, bunny_target, method="mls-sicp", init=near_start,
+                            max_iterations=3, mls_radius_d=6)
+    assert fixed.mls_radius_d == 6.0 and not fixed.mls_radius_auto
+
+
+@pytest.mark.parametrize("params, message", [
+    ({"max_iteration": 3}, "max_iteration: not a registration parameter"),
+    ({"max_iterations": 0}, r"max_iterations must be in \[1, 100000\]"),
+    ({"max_iterations": 2.5}, "max_iterations: '2.5' is not valid"),
+    ({"sicp_p": "x"}, "sicp_p: 'x' is not valid"),
+    ({"max_iterations": None}, "max_iterations: 'auto' is not valid"),
+])
+def test_bad_parameters_raise_value_error_naming_them(bun000, bunny_target, params, message):
+    with pytest.raises(ValueError, match=message):
+        mlsreg.register(bun000, bunny_target, **params)
+
+
+def test_an_unknown_method_is_a_value_error(bun000, bunny_target):
+    with pytest.raises(ValueError, match="nope"):
+        mlsreg.register(bun000, bunny_target, method="nope")
+
+
+# ---- bad input never crashes
+
+@pytest.mark.parametrize("make, message", [
+    (lambda p: p.astype(np.int64), "source: dtype int64 is not a floating-point type"),
+    (lambda p: p.astype(np.complex128), "source: dtype complex128"),
+    (lambda p: p[:, :2], r"source: shape \(40256, 2\) is not \(N, 3\) or \(N, 6\)"),
+    (lambda p: p.ravel(), r"source: shape \(120768,\) is not"),
+    (lambda p: np.where(np.arange(len(p))[:, None] == 7, np.nan, p), "point 7"),
+    (lambda p: p[:2], "source"),
+    (lambda p: None, "source: is None"),
+    (lambda p: "points", "source"),
+])
+def test_bad_sources_raise_value_error(bun000, bunny_target, make, message):
+    with pytest.raises(ValueError, match=message):
+        mlsreg.register(make(bun000.points), bunny_target)
+
+
+def test_bad_targets_and_starts_raise_value_error(bun000):
+    with pytest.raises(ValueError, match="target: point cloud has 5 points; at least 10"):
+        mlsreg.Target(bun000.points[:5])
+    with pytest.raises(ValueError, match="point 3"):
+        mlsreg.Target(np.where(np.arange(1000)[:, None] == 3, np.inf, bun000.points[:1000]))
+    with pytest.raises(ValueError, match="target.normals: 10 normals for 1000 points"):
+        mlsreg.Target(bun000.points[:1000], normals=np.ones((10, 3)))
+    target = mlsreg.Target(bun000.points)
+    with pytest.raises(ValueError, match=r"init: the shape must be \(4, 4\)"):
+        mlsreg.register(bun000, target, init=np.eye(3))
+    with pytest.raises(ValueError, match="init"):
+        mlsreg.register(bun000, target, init=2 * np.eye(4))
+
+
+def test_an_organised_method_needs_intrinsics(bun000, bunny_target):
+    with pytest.raises(ValueError, match="rc-bl"):
+        mlsreg.register(bun000, bunny_target, method="rc-bl")
+
+
+# ---- the callback
+
+def test_the_callback_sees_every_iteration_and_can_cancel(bun000, bunny_target, near_start):
+    seen = []
+
+    def callback(report):
+        seen.append(report)
+        return report.iteration < 2
+
+    result = mlsreg.register(bun000, bunny_target, method="mls-sicp", init=near_start,
+                             callback=callback)
+    assert result.termination == "cancelled" and not result.converged
+    assert [r.iteration for r in seen] == [1, 2] and result.iterations == 2
+    assert isinstance(seen[0], mlsreg.IterationReport) and seen[0].transform.shape == (4, 4)
+    np.testing.assert_array_equal(seen[-1].transform, result.transform)
+
+
+def test_an_exception_in_the_callback_stops_and_propagates(bun000, bunny_target, near_start):
+    calls = []
+
+    def callback(report):
+        calls.append(report.iteration)
+        raise RuntimeError("stop here")
+
+    with pytest.raises(RuntimeError, match="stop here"):
+        mlsreg.register(bun000, bunny_target, method="mls-sicp", init=near_start,
+                        callback=callback)
+    assert calls == [1]
+
+
+# ---- threads
+
+def test_python_threads_register_in_parallel(bun000, bunny_target, near_start):
+    """With the GIL released, two registrations run at the same time: the iterations of each
+    (as their callbacks stamp them) interleave in time, and the results are those of one
+    registration alone."""
+    alone = mlsreg.register(bun000, bunny_target, method="mls-sicp", init=near_start)
+    stamps = {0: [], 1: []}
+    results = {}
+    barrier = threading.Barrier(2)
+
+    def run(k):
+        barrier.wait()
+        results[k] = mlsreg.register(
+            bun000, bunny_target, method="mls-sicp", init=near_start,
+            callback=lambda r: stamps[k].append(time.monotonic()))
+
+    threads = [threading.Thread(target=run, args=(k,)) for k in (0, 1)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for k in (0, 1):
+        np.testing.assert_array_equal(results[k].transform, alone.transform)
+        assert len(stamps[k]) == alone.iterations >= 4
+    # Each thread's run spans the other's: neither ran start to end while the other waited.
+    first = min(stamps, key=lambda k: stamps[k][0])
+    other = 1 - first
+    assert stamps[other][0] < stamps[first][-1], "the registrations ran one after the other"
+
+
+# ---- evaluation
+
+def test_evaluate_measures_against_ground_truth(bun000, bunny_target, gt):
+    d = bunny_target.sampling_distance
+    result = mlsreg.register(bun000, bunny_target, method="cp-sicp", init=gt, max_iterations=1)
+    exact = mlsreg.evaluate(result, result.transform)
+    assert exact.rmse_d == 0.0 and exact.success and exact.rotation_deg == 0.0
+    off = perturbed(result.transform, 0.0, np.array([10 * d, 0.0, 0.0]))
+    shifted = mlsreg.evaluate(result, off)
+    assert shifted.rmse_d == pytest.approx(10.0, rel=1e-9)
+    assert shifted.translation_d == pytest.approx(10.0, rel=1e-9) and not shifted.success
+    with pytest.raises(ValueError, match="gt"):
+        mlsreg.evaluate(result, np.zeros((4, 4)))
