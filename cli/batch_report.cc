@@ -108,19 +108,31 @@ std::string RecallSvg(const std::vector<JobOutcome>& jobs) {
   return Chart::Svg("alpha-recall curve", body);
 }
 
-// Jobs per latency bin: 12 bins from 0 to the slowest job.
-std::string LatencySvg(const std::vector<JobOutcome>& jobs) {
-  constexpr int kBins = 12;
-  double slowest = 0.0;
-  for (const JobOutcome& j : jobs) slowest = std::max(slowest, j.seconds);
-  const double width = slowest > 0 ? slowest / kBins * 1.0001 : 1.0;
-  std::vector<int> counts(kBins, 0);
-  for (const JobOutcome& j : jobs) {
-    counts[std::min(kBins - 1, static_cast<int>(j.seconds / width))]++;
+// 1, 2, 2.5 or 5 times a power of ten, at least `v`: an axis end whose fifths are round.
+double NiceCeil(double v) {
+  if (!(v > 0)) return 1.0;
+  const double power = std::pow(10.0, std::floor(std::log10(v)));
+  for (double m : {1.0, 2.0, 2.5, 5.0, 10.0}) {
+    if (m * power >= v) return m * power;
   }
-  const int most = std::max(1, *std::max_element(counts.begin(), counts.end()));
-  const Chart chart(width * kBins, most);
-  std::string body = chart.Axes("job time (s, upload excluded)", "jobs", 6, std::min(most, 5));
+  return 10.0 * power;
+}
+
+// Jobs that ran, per latency bin: 10 bins up to a round value above the slowest.
+std::string LatencySvg(const std::vector<const JobOutcome*>& ran) {
+  constexpr int kBins = 10;
+  double slowest = 0.0;
+  for (const JobOutcome* j : ran) slowest = std::max(slowest, j->seconds);
+  const double x_max = NiceCeil(slowest * 1.0001);
+  const double width = x_max / kBins;
+  std::vector<int> counts(kBins, 0);
+  for (const JobOutcome* j : ran) {
+    counts[std::min(kBins - 1, static_cast<int>(j->seconds / width))]++;
+  }
+  const int most = *std::max_element(counts.begin(), counts.end());
+  const double y_max = std::max(1.0, NiceCeil(most));
+  const Chart chart(x_max, y_max);
+  std::string body = chart.Axes("job time (s)", "jobs", 5, y_max < 5 ? static_cast<int>(y_max) : 5);
   for (int b = 0; b < kBins; ++b) {
     if (counts[b] == 0) continue;
     absl::StrAppendFormat(&body,
@@ -169,7 +181,8 @@ table { border-collapse: collapse; } td, th { padding: 3px 8px; border-bottom: 1
 th { text-align: left; background: #f4f4f4; } td.n { text-align: right; font-variant-numeric: tabular-nums; }
 tr.failed { background: #fde8e8; } tr.doubtful { background: #fff6e0; }
 td.msg { color: #a00; max-width: 40em; } .summary td:first-child { color: #555; }
-.charts { display: flex; flex-wrap: wrap; gap: 2em; }
+.charts { display: flex; flex-wrap: wrap; gap: 2em; } figure { margin: 0; }
+figcaption { max-width: 560px; font-size: 12px; color: #555; }
 .axis { stroke: #333; } .grid { stroke: #e4e4e4; } .tick { font-size: 11px; fill: #444; }
 .label { font-size: 12px; fill: #222; } .curve { fill: none; stroke: #1f77b4; stroke-width: 2; }
 .threshold { stroke: #d62728; stroke-dasharray: 4 3; } .bar { fill: #1f77b4; }
@@ -232,10 +245,14 @@ std::string BatchReportHtml(const BatchReportInfo& info, const std::vector<JobOu
                     "<figcaption>alpha-recall: share of all jobs with RMSE below alpha against "
                     "the ground truth (failed jobs count as misses)</figcaption></figure>");
   }
-  if (!jobs.empty()) {
-    absl::StrAppend(&html, "<figure>", LatencySvg(jobs),
-                    "<figcaption>job latency (registration round trip, retries included)"
-                    "</figcaption></figure>");
+  std::vector<const JobOutcome*> ran;  // reached a server: a result, or an error after a call
+  for (const JobOutcome& j : jobs) {
+    if (j.error.empty() || j.attempts > 0 || !j.request_id.empty()) ran.push_back(&j);
+  }
+  if (!ran.empty()) {
+    absl::StrAppend(&html, "<figure>", LatencySvg(ran),
+                    "<figcaption>latency of the jobs that ran (the registration round trip, "
+                    "retries included)</figcaption></figure>");
   }
   html +=
       "</div>\n<h2>Jobs</h2>\n<table><tr><th>job</th><th>status</th><th>target</th>"

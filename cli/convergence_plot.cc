@@ -15,7 +15,7 @@ std::string ConvergencePlotData(std::string_view method, const RegistrationResul
   data["title"] = absl::StrFormat("%s: %s after %d iterations, d = %.4g", std::string(method),
                                   std::string(TerminationName(result.termination)),
                                   result.iterations, result.sampling_distance);
-  for (const char* key : {"iteration", "stage", "rmse_d", "matched", "rejected_normal",
+  for (const char* key : {"iteration", "stage", "candidate", "rmse_d", "matched", "rejected_normal",
                           "rejected_curvature", "rejected_distance", "invalid"}) {
     data[key] = nlohmann::json::array();
   }
@@ -23,6 +23,7 @@ std::string ConvergencePlotData(std::string_view method, const RegistrationResul
   for (const IterationReport& r : result.trace) {
     data["iteration"].push_back(r.iteration);
     data["stage"].push_back(std::string(StageName(r.stage)));
+    data["candidate"].push_back(r.candidate);
     data["rmse_d"].push_back(r.rmse_d);
     data["matched"].push_back(r.counts.matched);
     data["rejected_normal"].push_back(r.counts.rejected_normal);

@@ -1,6 +1,6 @@
 # Draws the convergence of one registration as a PNG (mlsreg register --plot). Embedded in the
 # mlsreg binary and run with python3 + matplotlib; reads the JSON the CLI writes:
-#   {"title", "iteration", "stage", "rmse_d", "gt_rmse_d" (or null), "matched",
+#   {"title", "iteration", "stage", "candidate", "rmse_d", "gt_rmse_d" (or null), "matched",
 #    "rejected_normal", "rejected_curvature", "rejected_distance", "invalid"}
 import json
 import sys
@@ -31,7 +31,8 @@ for key, colour in [("rejected_normal", "#ff7f0e"), ("rejected_curvature", "#946
 bottom.set_ylabel("correspondences")
 bottom.set_xlabel("iteration")
 bottom.grid(True, alpha=0.3)
-# Method auto: shade its stages and label them.
+# Method auto: shade the stages of the path to the result (the winner's refinement, then the
+# final one) and label them.
 stages = data["stage"]
 start = 0
 shades = {"start": "#eeeeee", "candidate": "#fff3e0", "final": "#e8f5e9"}
@@ -40,7 +41,10 @@ for i in range(1, len(stages) + 1):
         if stages[start] in shades and len(set(stages)) > 1:
             for ax in (top, bottom):
                 ax.axvspan(start + 0.5, i + 0.5, color=shades[stages[start]], zorder=0)
-            top.text((start + i + 1) / 2, 1.0, stages[start], transform=top.get_xaxis_transform(),
+            label = stages[start]
+            if label == "candidate":
+                label = f"candidate {data['candidate'][start]}"
+            top.text((start + i + 1) / 2, 1.0, label, transform=top.get_xaxis_transform(),
                      ha="center", va="bottom", fontsize=8)
         start = i
 top.legend(fontsize=8, loc="upper right")

@@ -17,3 +17,9 @@ elif [ $# -gt 0 ]; then
   cmake -S . -B "$BUILD_DIR" "$@"
 fi
 cmake --build "$BUILD_DIR" -j "$JOBS"
+# The Python package into Debian's python3 (/usr/local/lib/python3.X/dist-packages/mlsreg), when
+# it was built and the prefix is writable (as root); otherwise use PYTHONPATH=$BUILD_DIR/python.
+if [ -d "$BUILD_DIR/python/mlsreg" ] && [ "${MLSREG_INSTALL_PYTHON:-1}" != 0 ] &&
+   [ -w "$(cmake -L -N "$BUILD_DIR" 2>/dev/null | sed -n 's/^CMAKE_INSTALL_PREFIX:PATH=//p')" ]; then
+  cmake --install "$BUILD_DIR" --component python >/dev/null
+fi

@@ -35,7 +35,15 @@ args=(--source data/bunny/bun000.ply --init "$GT" --gt "$GT" --perturb-angle 5 -
       --samples 1000 --json)
 "$MLSREG" register --server "$A" --target bun045 "${args[@]}" "$work/remote.json" > "$work/remote.txt"
 "$MLSREG" register --target data/bunny/bun045.ply "${args[@]}" "$work/local.json" \
-  --aligned "$work/aligned.ply" --merged "$work/merged.ply" > "$work/local.txt"
+  --aligned "$work/aligned.ply" --merged "$work/merged.ply" --plot "$work/plot.png" > "$work/local.txt"
+# The convergence plot is a PNG (matplotlib's 880 x 715 at 110 dpi).
+python3 - "$work/plot.png" <<'PY' || fail "--plot"
+import struct, sys
+data = open(sys.argv[1], "rb").read()
+assert data[:8] == b"\x89PNG\r\n\x1a\n" and data[12:16] == b"IHDR", data[:16]
+assert struct.unpack(">II", data[16:24]) == (880, 715), struct.unpack(">II", data[16:24])
+assert len(data) > 20000, len(data)
+PY
 # The result clouds: the aligned source with its distance to the target's MLS surface (scalar
 # field and colour ramp), and both clouds merged.
 python3 - "$work/aligned.ply" "$work/merged.ply" <<'PY' || fail "--aligned / --merged clouds"
@@ -129,12 +137,25 @@ c,$SRC/data/bunny/bun315.ply,$SRC/data/bunny/bun000.ply,$(awk -F, '$1 == "bun315
 CSV
 set +e
 "$MLSREG" batch --server "$A" --manifest "$work/jobs.csv" --results "$work/results.csv" \
-  --samples 500 --concurrency 2 2> "$work/batch.log"
+  --samples 500 --concurrency 2 --report "$work/report.html" 2> "$work/batch.log"
 code=$?
 set -e
 [ "$code" -eq 1 ] || fail "batch with a failing job exited $code: $(cat "$work/batch.log")"
 [ "$(grep -c ',ok,' "$work/results.csv")" -eq 2 ] || fail "batch rows: $(cat "$work/results.csv")"
 grep -q '^b,.*missing.ply' "$work/results.csv" || fail "failed job not reported"
+# The HTML report: self-contained (nothing to fetch), the failure first, every job in the table,
+# the alpha-recall curve (ground truth is known) and the latency histogram.
+python3 - "$work/report.html" <<'PY' || fail "--report: $(head -c 600 "$work/report.html")"
+import re, sys
+html = open(sys.argv[1]).read()
+assert html.startswith("<!DOCTYPE html>") and html.rstrip().endswith("</html>")
+assert not re.search(r"<(script|link|img|iframe)\b|url\(|@import", html), "external resource"
+assert set(re.findall(r"https?://[^'\"]+", html)) <= {"http://www.w3.org/2000/svg"}
+assert "3: 2 ok, 1 failed" in html and "2 of 2 jobs with ground truth" in html
+rows = re.findall(r"<tr class='(failed|doubtful|ok)'><td>([abc])</td>", html)
+assert [r[1] for r in rows] == ["b", "b", "a", "c"] or [r[1] for r in rows] == ["b", "b", "c", "a"], rows
+assert html.count("<svg ") == 2 and "alpha-recall" in html and "latency" in html
+PY
 set +e
 "$MLSREG" batch --server "$A" --manifest "$work/jobs.csv" --results "$work/results.csv" --resume \
   --samples 500 2> "$work/resume.log"

@@ -35,7 +35,8 @@ check(len(re.findall(r"^FROM ", dockerfile, re.M)) == 2, "Dockerfile has two sta
 check("scripts/install-deps.sh" in dockerfile and "scripts/build.sh" in dockerfile,
       "Dockerfile builds with the README/CI scripts")
 check(re.search(r"^USER mlsreg", dockerfile, re.M), "Dockerfile runs as a non-root user")
-check(re.search(r"^EXPOSE 50051", dockerfile, re.M), "Dockerfile exposes 50051")
+check(re.search(r"^EXPOSE 50051 9464$", dockerfile, re.M), "Dockerfile exposes 50051 and 9464")
+check("MLSREG_METRICS_LISTEN=0.0.0.0:9464" in dockerfile, "Dockerfile serves /metrics on 9464")
 check(re.search(r"^VOLUME /var/lib/mlsreg", dockerfile, re.M), "Dockerfile declares the data volume")
 check(re.search(r"^HEALTHCHECK .*\n?.*mlsreg\", \"health\"", dockerfile, re.M),
       "Dockerfile health check uses mlsreg health")
@@ -45,6 +46,8 @@ check('ENTRYPOINT ["mlsreg", "serve"]' in dockerfile, "Dockerfile entrypoint is 
 compose = load("deploy/docker-compose.yml")
 svc = compose["services"]["mlsreg"]
 check("50051:50051" in svc["ports"], "compose publishes 50051")
+check("127.0.0.1:9464:9464" in svc["ports"], "compose publishes /metrics on the host's loopback")
+check(svc["environment"]["MLSREG_METRICS_LISTEN"] == "0.0.0.0:9464", "compose turns /metrics on")
 check(any(v.endswith(":/var/lib/mlsreg") for v in svc["volumes"]), "compose mounts the data volume")
 check("mlsreg-data" in compose["volumes"], "compose declares the named volume")
 check(svc["healthcheck"]["test"][1:3] == ["mlsreg", "health"], "compose health check")
@@ -62,11 +65,18 @@ check(set(docs) == {"ConfigMap", "Service", "StatefulSet", "HorizontalPodAutosca
 sts = docs["StatefulSet"]["spec"]
 container = sts["template"]["spec"]["containers"][0]
 check(container["ports"][0]["containerPort"] == 50051, "k8s container port 50051")
+check({"name": "metrics", "containerPort": 9464, "protocol": "TCP"} in container["ports"],
+      "k8s container exposes the metrics port")
+annotations = sts["template"]["metadata"].get("annotations", {})
+check(annotations.get("prometheus.io/scrape") == "true" and
+      annotations.get("prometheus.io/port") == "9464" and
+      annotations.get("prometheus.io/path") == "/metrics", "k8s pods carry the scrape annotations")
 for probe in ("startupProbe", "readinessProbe", "livenessProbe"):
     check(container[probe].get("grpc", {}).get("port") == 50051, f"k8s {probe} is a gRPC probe on 50051")
 check(any(m["mountPath"] == "/var/lib/mlsreg" for m in container["volumeMounts"]), "k8s mounts the data volume")
 check(sts["volumeClaimTemplates"][0]["metadata"]["name"] == "data", "k8s claims per-replica storage")
 config = docs["ConfigMap"]["data"]
+check(config.get("MLSREG_METRICS_LISTEN") == "0.0.0.0:9464", "k8s config turns /metrics on")
 check(sts["template"]["spec"]["terminationGracePeriodSeconds"] > int(config["MLSREG_DRAIN_SECONDS"]),
       "k8s grace period > drain")
 service = docs["Service"]["spec"]
@@ -84,6 +94,7 @@ packages = subprocess.run(["bash", os.path.join(src, "scripts/runtime-packages.s
                           check=True, capture_output=True, text=True).stdout.split()
 check("libgrpc++1.51" in packages and "libprotobuf32" in packages,
       f"runtime packages include gRPC and protobuf: {packages}")
+check("libcivetweb1" in packages, f"runtime packages include civetweb (/metrics): {packages}")
 
 for f in failures:
     print("FAIL:", f)
