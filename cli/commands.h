@@ -22,6 +22,8 @@ CommandRunner AddHealthCommand(CLI::App& app);
 CommandRunner AddStatsCommand(CLI::App& app);
 // `mlsreg batch`: many registrations from a manifest against a server.
 CommandRunner AddBatchCommand(CLI::App& app);
+// `mlsreg align`: many scans into one frame (pairwise edges + pose graph).
+CommandRunner AddAlignCommand(CLI::App& app);
 // `mlsreg manual` (the Markdown reference, docs/cli.md) and `mlsreg completion bash`, both
 // generated from the commands above.
 CommandRunner AddManualCommand(CLI::App& app);

@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
   add(&mlsreg::cli::AddServeCommand);
   add(&mlsreg::cli::AddTargetsCommand);
   add(&mlsreg::cli::AddBatchCommand);
+  add(&mlsreg::cli::AddAlignCommand);
   add(&mlsreg::cli::AddHealthCommand);
   add(&mlsreg::cli::AddStatsCommand);
   add(&mlsreg::cli::AddManualCommand);

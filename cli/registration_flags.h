@@ -14,6 +14,9 @@ namespace mlsreg::cli {
 
 class RegistrationFlags {
  public:
+  RegistrationFlags() = default;
+  // A command whose registrations default to another method (align: MLS-SICP edges).
+  explicit RegistrationFlags(Method default_method) : method_(MethodName(default_method)) {}
   // `method_flag`: false for commands that take a list of methods themselves.
   void AddTo(CLI::App& app, bool method_flag = true);
   // The options the flags gave (defaults elsewhere), validated; the first bad flag's error.

@@ -12,7 +12,7 @@ packages=(
   clang-14 libclang-rt-14-dev
   python3 python3-yaml python3-matplotlib
   python3-dev pybind11-dev python3-numpy python3-pytest
-  libcivetweb-dev
+  libcivetweb-dev libceres-dev
 )
 
 missing=()

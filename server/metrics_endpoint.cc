@@ -28,7 +28,8 @@ absl::StatusOr<std::unique_ptr<MetricsEndpoint>> MetricsEndpoint::Start(
     return absl::UnavailableError(absl::StrCat("metrics_listen: cannot listen on ", listen, ": ",
                                                error_text[0] ? error_text : "unknown error"));
   }
-  mg_set_request_handler(endpoint->context_, "/metrics$", &MetricsEndpoint::Serve, endpoint.get());
+  // One handler for every path: civetweb's own file serving (no document root) must never run.
+  mg_set_request_handler(endpoint->context_, "**", &MetricsEndpoint::Serve, endpoint.get());
   mg_server_port ports[4];
   const int n = mg_get_server_ports(endpoint->context_, 4, ports);
   if (n > 0) endpoint->port_ = ports[0].port;
@@ -41,6 +42,15 @@ MetricsEndpoint::~MetricsEndpoint() {
 
 int MetricsEndpoint::Serve(mg_connection* connection, void* self) {
   const mg_request_info* request = mg_get_request_info(connection);
+  if (request->local_uri == nullptr || std::string_view(request->local_uri) != "/metrics") {
+    static constexpr std::string_view kBody = "not found: the metrics are at /metrics\n";
+    mg_printf(connection,
+              "HTTP/1.1 404 Not Found\r\nContent-Type: text/plain\r\nContent-Length: %zu\r\n"
+              "Connection: close\r\n\r\n",
+              kBody.size());
+    mg_write(connection, kBody.data(), kBody.size());
+    return 404;
+  }
   if (std::string_view(request->request_method) != "GET" &&
       std::string_view(request->request_method) != "HEAD") {
     mg_printf(connection,

@@ -21,6 +21,7 @@ ALLOWED = {
     "registration": {"core", "geometry", "correspondences", "solvers", "registration"},
     "evaluation": {"core", "io", "geometry", "correspondences", "solvers", "registration",
                    "evaluation"},
+    "multiview": {"core", "geometry", "correspondences", "solvers", "registration", "multiview"},
 }
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"', re.M)
 

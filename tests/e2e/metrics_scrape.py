@@ -9,6 +9,7 @@ target-build counters have moved by exactly what was done; other paths are 404, 
 Usage: metrics_scrape.py MLSREG_BINARY SOURCE_DIR"""
 
 import re
+import socket
 import subprocess
 import sys
 import tempfile
@@ -146,7 +147,9 @@ with tempfile.TemporaryDirectory() as work:
                 get(after, "mlsreg_inflight_bytes") == 0 and get(after, "mlsreg_active_jobs") == 0):
             fail("cache bytes, build seconds or the idle gauges are wrong after the run")
 
-        for path, method, status in [("/other", "GET", 404), ("/metrics", "POST", 405)]:
+        for path, method, status in [("/other", "GET", 404), ("/", "GET", 404),
+                                     ("/metrics/", "GET", 404), ("/a/b/../c", "GET", 404),
+                                     ("/metrics", "POST", 405), ("/metrics", "DELETE", 405)]:
             try:
                 urllib.request.urlopen(urllib.request.Request(
                     metrics_url.replace("/metrics", path), method=method,
@@ -155,6 +158,21 @@ with tempfile.TemporaryDirectory() as work:
             except urllib.error.HTTPError as e:
                 if e.code != status:
                     fail(f"{method} {path}: {e.code}, expected {status}")
+        # Junk on the socket, then a scrape: the endpoint and the server keep working.
+        host, port = metrics_url.split("//")[1].split("/")[0].split(":")
+        for junk in [b"GARBAGE\r\n\r\n", b"GET /metrics HTTP/1.1\r\nX: " + b"a" * 100000,
+                     b"\x00\xff" * 1000, b"GET " + b"/x" * 5000 + b" HTTP/1.1\r\n\r\n"]:
+            with socket.create_connection((host, int(port)), timeout=10) as s:
+                try:  # the endpoint may answer 4xx and close before it has read it all
+                    s.sendall(junk)
+                    s.shutdown(socket.SHUT_WR)
+                    while s.recv(65536):
+                        pass
+                except (ConnectionResetError, BrokenPipeError, OSError):
+                    pass
+        scrape(metrics_url)
+        if server.poll() is not None:
+            fail("the server died on bad HTTP requests")
     finally:
         server.terminate()
         if server.wait(timeout=30) != 0:

@@ -1,0 +1,210 @@
+// `mlsreg align`: many scans into one frame. Pairwise registrations (MLS-SICP by default) along
+// the chosen pairs, one progress line per edge, then a pose graph; prints the edges and the
+// poses, writes the poses (rows or Stanford .conf) and optionally the merged cloud.
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "absl/strings/str_format.h"
+#include "cli/commands.h"
+#include "cli/exit_codes.h"
+#include "cli/registration_flags.h"
+#include "mlsreg/core/parallel_for.h"
+#include "mlsreg/io/io.h"
+#include "mlsreg/io/pose_files.h"
+#include "mlsreg/multiview/align_scans.h"
+
+namespace mlsreg::cli {
+namespace {
+
+struct AlignArgs {
+  std::vector<std::string> scans;
+  std::string poses, gt, out, merged, json, pairs = "loop";
+  double min_overlap = AlignOptions().min_overlap;
+  int anchor = 0;
+  int threads = HardwareThreads();
+  RegistrationFlags flags{Method::kMlsSicp};
+};
+
+int Fail(const absl::Status& status) {
+  std::fprintf(stderr, "mlsreg align: %s\n", std::string(status.message()).c_str());
+  return status.code() == absl::StatusCode::kInvalidArgument ? kExitBadInput : kExitFailed;
+}
+
+std::string Name(const std::string& path) {
+  const std::size_t slash = path.find_last_of('/');
+  return slash == std::string::npos ? path : path.substr(slash + 1);
+}
+
+double RotationDeg(const Matrix4& a, const Matrix4& b) {
+  const Eigen::Matrix3d r = a.topLeftCorner<3, 3>().transpose() * b.topLeftCorner<3, 3>();
+  return Eigen::AngleAxisd(r).angle() * 180.0 / M_PI;
+}
+
+nlohmann::json Row(const Matrix4& m) {
+  std::vector<double> v;
+  for (int k = 0; k < 16; ++k) v.push_back(m(k / 4, k % 4));
+  return v;
+}
+
+int RunAlign(const AlignArgs& args) {
+  auto edge_options = args.flags.ToOptions();
+  if (!edge_options.ok()) return Fail(edge_options.status());
+  auto policy = ParseEnum<PairPolicy>(PairPolicyNames(), args.pairs, "--pairs");
+  if (!policy.ok()) return Fail(policy.status());
+  std::vector<PointCloud> scans;
+  for (const std::string& path : args.scans) {
+    auto cloud = ReadPointCloud(path);
+    if (!cloud.ok()) return Fail(cloud.status());
+    scans.push_back(*std::move(cloud));
+  }
+  AlignOptions options;
+  options.edge = *edge_options;
+  options.pairs = *policy;
+  options.min_overlap = args.min_overlap;
+  options.anchor = args.anchor;
+  options.threads = std::max(1, args.threads);
+  if (!args.poses.empty()) {
+    auto poses = ReadPoses(args.poses, args.scans);
+    if (!poses.ok()) return Fail(poses.status());
+    options.initial_poses = *std::move(poses);
+  }
+  std::vector<Matrix4> truth;
+  if (!args.gt.empty()) {
+    auto poses = ReadPoses(args.gt, args.scans);
+    if (!poses.ok()) return Fail(poses.status());
+    truth = *std::move(poses);
+  }
+  std::printf("align: %zu scans, pairs %s, edges by %s, %d threads\n", scans.size(),
+              args.pairs.c_str(), std::string(MethodName(options.edge.method)).c_str(),
+              options.threads);
+  AlignCallbacks callbacks;
+  callbacks.on_edge = [&](const AlignEdge& e, int done, int total) {
+    std::printf(
+        "[edge %d/%d] %s <- %s: %s after %d iterations, rmse %.3f d, overlap %.1f %%\n", done,
+        total, Name(args.scans[e.from]).c_str(), Name(args.scans[e.to]).c_str(),
+        std::string(TerminationName(e.registration.termination)).c_str(), e.registration.iterations,
+        e.registration.trace.empty() ? 0.0 : e.registration.trace.back().rmse_d, 100.0 * e.overlap);
+    std::fflush(stdout);
+  };
+  auto result = AlignScans(scans, options, callbacks);
+  if (!result.ok()) return Fail(result.status());
+
+  std::printf("\nedges (disagreement with the optimised poses, units of d = %.6g):\n",
+              result->sampling_distance);
+  std::printf("  %-24s %-24s %8s %8s %6s\n", "target", "source", "before", "after", "kept");
+  for (const AlignEdge& e : result->edges) {
+    std::printf("  %-24s %-24s %8.3f %8.3f %6s\n", Name(args.scans[e.from]).c_str(),
+                Name(args.scans[e.to]).c_str(), e.residual_before_d, e.residual_after_d,
+                e.kept ? "yes" : "NO");
+  }
+  if (options.pairs == PairPolicy::kLoop) {
+    std::printf("loop closure of the chained edges: %.3f deg, %.3f d\n",
+                result->loop_closure_rotation_deg, result->loop_closure_error_d);
+  }
+  // Ground truth in the anchor's frame, as the result.
+  std::vector<double> rotation_error, translation_error;
+  if (!truth.empty()) {
+    const Matrix4 to_anchor = truth[args.anchor].inverse();
+    for (std::size_t i = 0; i < truth.size(); ++i) {
+      const Matrix4 expected = to_anchor * truth[i];
+      rotation_error.push_back(RotationDeg(result->poses[i], expected));
+      translation_error.push_back(
+          (result->poses[i].topRightCorner<3, 1>() - expected.topRightCorner<3, 1>()).norm() /
+          result->sampling_distance);
+    }
+  }
+  std::printf("\nposes (scan -> frame of %s, row-major):\n", Name(args.scans[args.anchor]).c_str());
+  for (std::size_t i = 0; i < result->poses.size(); ++i) {
+    std::printf("  %-24s", Name(args.scans[i]).c_str());
+    for (int k = 0; k < 12; ++k) std::printf(" %10.6f", result->poses[i](k / 4, k % 4));
+    std::printf("   drift removed %.3f d", result->chain_deviation_d[i]);
+    if (!truth.empty()) {
+      std::printf("   vs gt %.3f deg %.3f d", rotation_error[i], translation_error[i]);
+    }
+    std::printf("\n");
+  }
+  std::printf("aligned in %.2f s (%d pose-graph iterations)\n", result->seconds,
+              result->graph_iterations);
+  if (!args.out.empty()) {
+    if (absl::Status s = WritePoses(args.out, result->poses, args.scans); !s.ok()) return Fail(s);
+  }
+  if (!args.merged.empty()) {
+    if (absl::Status s = WritePointCloud(MergeScans(scans, result->poses), args.merged); !s.ok()) {
+      return Fail(s);
+    }
+  }
+  if (!args.json.empty()) {
+    nlohmann::json j;
+    j["sampling_distance"] = result->sampling_distance;
+    j["pairs"] = args.pairs;
+    j["method"] = std::string(MethodName(options.edge.method));
+    j["loop_closure_rotation_deg"] = result->loop_closure_rotation_deg;
+    j["loop_closure_error_d"] = result->loop_closure_error_d;
+    j["seconds"] = result->seconds;
+    for (std::size_t i = 0; i < result->poses.size(); ++i) {
+      nlohmann::json scan = {{"scan", args.scans[i]},
+                             {"pose", Row(result->poses[i])},
+                             {"chained_pose", Row(result->chained_poses[i])},
+                             {"drift_removed_d", result->chain_deviation_d[i]}};
+      if (!truth.empty()) {
+        scan["rotation_error_deg"] = rotation_error[i];
+        scan["translation_error_d"] = translation_error[i];
+      }
+      j["scans"].push_back(scan);
+    }
+    for (const AlignEdge& e : result->edges) {
+      j["edges"].push_back(
+          {{"from", e.from},
+           {"to", e.to},
+           {"relative", Row(e.relative)},
+           {"termination", std::string(TerminationName(e.registration.termination))},
+           {"iterations", e.registration.iterations},
+           {"overlap", e.overlap},
+           {"correspondences", e.correspondences},
+           {"residual_before_d", e.residual_before_d},
+           {"residual_after_d", e.residual_after_d},
+           {"kept", e.kept}});
+    }
+    std::ofstream out(args.json);
+    out << j.dump(2) << "\n";
+    if (!out) return Fail(absl::UnavailableError("cannot write --json file '" + args.json + "'"));
+  }
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner AddAlignCommand(CLI::App& app) {
+  auto args = std::make_shared<AlignArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "align", "align many scans into one frame: pairwise registrations and a pose graph");
+  cmd->add_option("--scans", args->scans, "the scans (PLY, PCD, XYZ/CSV, NPY), in order")
+      ->required()
+      ->expected(2, -1);
+  cmd->add_option("--poses", args->poses,
+                  "initial poses (scan -> common frame): a .conf (Stanford bmesh lines, "
+                  "rotation R(q)^T) or 16 row-major numbers per line in scan order; default: "
+                  "identity");
+  cmd->add_option("--pairs", args->pairs,
+                  "sequential | loop (sequential + last->first) | overlap (every pair "
+                  "overlapping under the initial poses)")
+      ->capture_default_str();
+  cmd->add_option("--min-overlap", args->min_overlap,
+                  "--pairs overlap: share of a scan on the other's MLS surface to pair them")
+      ->capture_default_str();
+  cmd->add_option("--anchor", args->anchor, "the scan whose frame the poses are in")
+      ->capture_default_str();
+  cmd->add_option("--gt", args->gt, "ground-truth poses (same formats), to report pose errors");
+  cmd->add_option("--out", args->out, "write the poses: .conf (Stanford) or rows (any other name)");
+  cmd->add_option("--merged", args->merged, "write every scan in the anchor's frame as one cloud");
+  cmd->add_option("--json", args->json, "write poses, edges and errors as JSON");
+  cmd->add_option("--threads", args->threads, "edges registered at once")->capture_default_str();
+  args->flags.AddTo(*cmd);
+  return [args] { return RunAlign(*args); };
+}
+
+}  // namespace mlsreg::cli

@@ -1,0 +1,92 @@
+// AlignScans: many scans into one frame. Pairwise registrations (any method; MLS-SICP by
+// default) give relative poses with information matrices, and a pose graph (pose_graph.h)
+// turns them into one pose per scan, dropping edges that disagree with the rest.
+#pragma once
+
+#include <functional>
+#include <optional>
+#include <string_view>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "mlsreg/core/enum_names.h"
+#include "mlsreg/core/point_cloud.h"
+#include "mlsreg/core/stop_check.h"
+#include "mlsreg/multiview/pose_graph.h"
+#include "mlsreg/registration/options.h"
+#include "mlsreg/registration/result.h"
+
+namespace mlsreg {
+
+// Which pairs of scans are registered.
+enum class PairPolicy {
+  kSequential,  // (0,1), (1,2), ..., (n-2,n-1)
+  kLoop,        // sequential plus (n-1,0): a turntable's closed circle
+  kOverlap,     // every pair whose estimated overlap under the initial poses is large enough
+};
+std::string_view PairPolicyName(PairPolicy policy);  // "sequential", "loop", "overlap"
+const EnumNames& PairPolicyNames();
+
+struct AlignOptions {
+  // Pose i maps scan i into the common frame. Empty: all identity (the scans are roughly in one
+  // frame already, e.g. from a turntable's angles or a robot's odometry applied upstream).
+  std::vector<Matrix4> initial_poses;
+  PairPolicy pairs = PairPolicy::kLoop;
+  // kOverlap: a pair is registered when at least this share of one scan's samples lies on the
+  // other's MLS surface under the initial poses (the verification score of method auto).
+  double min_overlap = 0.3;
+  // Every edge's registration; the method defaults to MLS-SICP.
+  RegistrationOptions edge = [] {
+    RegistrationOptions o;
+    o.method = Method::kMlsSicp;
+    return o;
+  }();
+  int anchor = 0;  // the scan whose frame the result is in
+  PoseGraphOptions graph;
+  int threads = 1;  // edges (and target builds) registered at once
+};
+
+struct AlignEdge {
+  int from = 0, to = 0;  // the registration of scan `to` (source) onto scan `from` (target)
+  Matrix4 relative = Matrix4::Identity();  // maps `to` into `from`'s frame
+  RegistrationResult registration;
+  double overlap = 0.0;     // share of `to`'s samples on `from`'s surface after registration
+  int correspondences = 0;  // behind the information matrix
+  Matrix6 information = Matrix6::Zero();
+  double residual_before_d = 0.0, residual_after_d = 0.0;  // pose_graph.h
+  bool kept = true;                                        // used by the final solve
+};
+
+struct AlignResult {
+  std::vector<Matrix4> poses;          // each scan into the anchor's frame
+  std::vector<Matrix4> chained_poses;  // composed along a spanning tree of the edges, unoptimised
+  std::vector<AlignEdge> edges;
+  // Per scan: RMS distance between its points under the chained pose and the optimised one
+  // (units of d): the drift the graph removed.
+  std::vector<double> chain_deviation_d;
+  // kLoop: the composition of the loop's edges should be the identity; its rotation (degrees) and
+  // the RMS displacement of scan 0's points under it (units of d). Zero otherwise.
+  double loop_closure_rotation_deg = 0.0;
+  double loop_closure_error_d = 0.0;
+  double sampling_distance = 0.0;  // the unit d: the mean of the scans' sampling distances
+  int graph_iterations = 0;
+  double seconds = 0.0;
+};
+
+struct AlignCallbacks {
+  // After each edge's registration (from several threads, one call at a time).
+  std::function<void(const AlignEdge& edge, int done, int total)> on_edge;
+  StopCheck should_stop;
+};
+
+// InvalidArgument naming the field for: fewer than 2 scans, a scan that cannot be a target, a
+// pose count that is not the scan count, a non-rigid pose, an anchor out of range, a pair graph
+// that does not join every scan. CANCELLED when stopped.
+absl::StatusOr<AlignResult> AlignScans(const std::vector<PointCloud>& scans,
+                                       const AlignOptions& options,
+                                       const AlignCallbacks& callbacks = {});
+
+// Every scan under its pose, one cloud (normals rotated along when all scans have them).
+PointCloud MergeScans(const std::vector<PointCloud>& scans, const std::vector<Matrix4>& poses);
+
+}  // namespace mlsreg

@@ -1,0 +1,56 @@
+// A pose graph over SE(3): N poses (each mapping its scan into the common frame) tied by relative
+// measurements with information matrices, solved by Ceres (Levenberg-Marquardt, quaternion
+// manifold) with a robust loss, then edges that still disagree dropped and the rest solved again.
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "mlsreg/core/transform.h"
+
+namespace mlsreg {
+
+using Matrix6 = Eigen::Matrix<double, 6, 6>;
+
+// Edge (from, to): `measurement` maps the points of scan `to` into the frame of scan `from`, i.e.
+// it estimates inverse(pose[from]) * pose[to]. `information` weighs the twist [rotation (rad);
+// translation] of the disagreement, applied on the left in `from`'s frame, so that
+// xi^T information xi is a squared length in units of d (see EdgeInformation).
+struct PoseGraphEdge {
+  int from = 0, to = 0;
+  Matrix4 measurement = Matrix4::Identity();
+  Matrix6 information = Matrix6::Identity();
+};
+
+struct PoseGraphOptions {
+  int anchor = 0;               // its pose is held fixed
+  double robust_scale_d = 1.0;  // Cauchy loss scale: disagreement (units of d) where it bends
+  double reject_above_d = 2.0;  // after the robust solve, edges disagreeing more are dropped
+  int max_iterations = 100;
+};
+
+struct PoseGraphResult {
+  std::vector<Matrix4> poses;
+  // Per edge: its disagreement sqrt(xi^T information xi) (units of d) at the initial poses and
+  // at the result, and whether it was kept for the final solve.
+  std::vector<double> residual_before_d, residual_after_d;
+  std::vector<bool> kept;
+  int iterations = 0;  // of both solves
+};
+
+// The disagreement of an edge at the given poses (units of d).
+double EdgeResidual(const PoseGraphEdge& edge, const std::vector<Matrix4>& poses);
+
+// Starts from `initial` (one pose per node). An edge is only dropped while the graph stays
+// connected without it (the worst first). InvalidArgument for bad indices or sizes.
+absl::StatusOr<PoseGraphResult> OptimisePoseGraph(const std::vector<Matrix4>& initial,
+                                                  const std::vector<PoseGraphEdge>& edges,
+                                                  const PoseGraphOptions& options = {});
+
+// Whether the undirected graph of `edges` (those with kept[e] when given) joins all n nodes;
+// `unreachable` lists the nodes not reached from node 0.
+bool IsConnected(int n, const std::vector<PoseGraphEdge>& edges, const std::vector<bool>* kept,
+                 std::vector<int>* unreachable = nullptr);
+
+}  // namespace mlsreg

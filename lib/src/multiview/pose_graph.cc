@@ -1,0 +1,187 @@
+#include "mlsreg/multiview/pose_graph.h"
+
+#include <ceres/ceres.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <numeric>
+
+#include "absl/strings/str_cat.h"
+
+namespace mlsreg {
+namespace {
+
+// Residual of one edge: sqrt_information * xi, where exp(xi) = inv(P_from) P_to inv(Z).
+struct EdgeCost {
+  Eigen::Quaterniond z_inverse_q;
+  Eigen::Vector3d z_inverse_t;
+  Matrix6 sqrt_information;
+
+  template <typename T>
+  bool operator()(const T* q_from, const T* t_from, const T* q_to, const T* t_to,
+                  T* residual) const {
+    using Quaternion = Eigen::Quaternion<T>;
+    using Vector3 = Eigen::Matrix<T, 3, 1>;
+    const Eigen::Map<const Quaternion> qi(q_from), qj(q_to);
+    const Eigen::Map<const Vector3> ti(t_from), tj(t_to);
+    const Quaternion qi_inverse = qi.conjugate();
+    const Quaternion q_relative = qi_inverse * qj;
+    const Vector3 t_relative = qi_inverse * (tj - ti);
+    Quaternion q_delta = q_relative * z_inverse_q.cast<T>();
+    const Vector3 t_delta = t_relative + q_relative * z_inverse_t.cast<T>();
+    if (q_delta.w() < T(0)) q_delta.coeffs() = -q_delta.coeffs();
+    Eigen::Matrix<T, 6, 1> xi;
+    xi << T(2) * q_delta.x(), T(2) * q_delta.y(), T(2) * q_delta.z(), t_delta;
+    Eigen::Map<Eigen::Matrix<T, 6, 1>> r(residual);
+    r = sqrt_information.cast<T>() * xi;
+    return true;
+  }
+};
+
+Matrix6 SqrtInformation(const Matrix6& information) {
+  Matrix6 h = 0.5 * (information + information.transpose());
+  h.diagonal().array() += 1e-9 * std::max(1.0, h.trace() / 6.0);  // sliding directions
+  return Eigen::LLT<Matrix6>(h).matrixU();
+}
+
+struct PoseBlocks {
+  std::vector<Eigen::Quaterniond> q;
+  std::vector<Eigen::Vector3d> t;
+  explicit PoseBlocks(const std::vector<Matrix4>& poses) {
+    for (const Matrix4& p : poses) {
+      q.emplace_back(Eigen::Matrix3d(p.topLeftCorner<3, 3>()));
+      q.back().normalize();
+      t.emplace_back(p.topRightCorner<3, 1>());
+    }
+  }
+  std::vector<Matrix4> Poses() const {
+    std::vector<Matrix4> out;
+    for (std::size_t i = 0; i < q.size(); ++i) {
+      Matrix4 m = Matrix4::Identity();
+      m.topLeftCorner<3, 3>() = q[i].normalized().toRotationMatrix();
+      m.topRightCorner<3, 1>() = t[i];
+      out.push_back(m);
+    }
+    return out;
+  }
+};
+
+int Solve(PoseBlocks& blocks, const std::vector<PoseGraphEdge>& edges, const std::vector<bool>& use,
+          const PoseGraphOptions& options, bool robust) {
+  ceres::Problem problem;
+  for (std::size_t i = 0; i < blocks.q.size(); ++i) {
+    problem.AddParameterBlock(blocks.q[i].coeffs().data(), 4, new ceres::EigenQuaternionManifold);
+    problem.AddParameterBlock(blocks.t[i].data(), 3);
+  }
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    if (!use[e]) continue;
+    const PoseGraphEdge& edge = edges[e];
+    const Matrix4 z_inverse = edge.measurement.inverse();
+    auto* cost = new ceres::AutoDiffCostFunction<EdgeCost, 6, 4, 3, 4, 3>(new EdgeCost{
+        Eigen::Quaterniond(Eigen::Matrix3d(z_inverse.topLeftCorner<3, 3>())).normalized(),
+        z_inverse.topRightCorner<3, 1>(), SqrtInformation(edge.information)});
+    ceres::LossFunction* loss = robust ? new ceres::CauchyLoss(options.robust_scale_d) : nullptr;
+    problem.AddResidualBlock(cost, loss, blocks.q[edge.from].coeffs().data(),
+                             blocks.t[edge.from].data(), blocks.q[edge.to].coeffs().data(),
+                             blocks.t[edge.to].data());
+  }
+  problem.SetParameterBlockConstant(blocks.q[options.anchor].coeffs().data());
+  problem.SetParameterBlockConstant(blocks.t[options.anchor].data());
+  ceres::Solver::Options solver;
+  solver.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  solver.max_num_iterations = options.max_iterations;
+  solver.num_threads = 1;
+  solver.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver, &problem, &summary);
+  return static_cast<int>(summary.iterations.size());
+}
+
+}  // namespace
+
+double EdgeResidual(const PoseGraphEdge& edge, const std::vector<Matrix4>& poses) {
+  const PoseBlocks blocks(poses);
+  const Matrix4 z_inverse = edge.measurement.inverse();
+  const EdgeCost cost{
+      Eigen::Quaterniond(Eigen::Matrix3d(z_inverse.topLeftCorner<3, 3>())).normalized(),
+      z_inverse.topRightCorner<3, 1>(), SqrtInformation(edge.information)};
+  Eigen::Matrix<double, 6, 1> r;
+  cost(blocks.q[edge.from].coeffs().data(), blocks.t[edge.from].data(),
+       blocks.q[edge.to].coeffs().data(), blocks.t[edge.to].data(), r.data());
+  return r.norm();
+}
+
+bool IsConnected(int n, const std::vector<PoseGraphEdge>& edges, const std::vector<bool>* kept,
+                 std::vector<int>* unreachable) {
+  std::vector<int> parent(static_cast<std::size_t>(n));
+  std::iota(parent.begin(), parent.end(), 0);
+  const auto find = [&](int x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    if (kept && !(*kept)[e]) continue;
+    parent[find(edges[e].from)] = find(edges[e].to);
+  }
+  bool connected = true;
+  for (int i = 0; i < n; ++i) {
+    if (find(i) != find(0)) {
+      connected = false;
+      if (unreachable) unreachable->push_back(i);
+    }
+  }
+  return connected;
+}
+
+absl::StatusOr<PoseGraphResult> OptimisePoseGraph(const std::vector<Matrix4>& initial,
+                                                  const std::vector<PoseGraphEdge>& edges,
+                                                  const PoseGraphOptions& options) {
+  const int n = static_cast<int>(initial.size());
+  if (n < 1) return absl::InvalidArgumentError("poses: the graph has no poses");
+  if (options.anchor < 0 || options.anchor >= n) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("anchor: ", options.anchor, " is not a pose index (0 .. ", n - 1, ")"));
+  }
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    const PoseGraphEdge& edge = edges[e];
+    if (edge.from < 0 || edge.from >= n || edge.to < 0 || edge.to >= n || edge.from == edge.to) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("edges[", e, "]: (", edge.from, ", ", edge.to, ") does not join two poses"));
+    }
+  }
+  PoseGraphResult result;
+  for (const PoseGraphEdge& edge : edges)
+    result.residual_before_d.push_back(EdgeResidual(edge, initial));
+  PoseBlocks blocks(initial);
+  std::vector<bool> use(edges.size(), true);
+  result.iterations += Solve(blocks, edges, use, options, /*robust=*/true);
+  // Drop the edges that still disagree, worst first, while the graph stays connected.
+  std::vector<Matrix4> robust_poses = blocks.Poses();
+  std::vector<std::size_t> order(edges.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::vector<double> disagreement;
+  for (const PoseGraphEdge& edge : edges) disagreement.push_back(EdgeResidual(edge, robust_poses));
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return disagreement[a] > disagreement[b]; });
+  bool dropped = false;
+  for (std::size_t e : order) {
+    if (disagreement[e] <= options.reject_above_d) break;
+    use[e] = false;
+    if (!IsConnected(n, edges, &use)) {
+      use[e] = true;
+    } else {
+      dropped = true;
+    }
+  }
+  // The final solve: plain least squares over the kept edges, from the robust solution.
+  if (dropped || !edges.empty()) result.iterations += Solve(blocks, edges, use, options, false);
+  result.poses = blocks.Poses();
+  result.kept = use;
+  for (const PoseGraphEdge& edge : edges) {
+    result.residual_after_d.push_back(EdgeResidual(edge, result.poses));
+  }
+  return result;
+}
+
+}  // namespace mlsreg

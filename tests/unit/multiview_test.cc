@@ -1,0 +1,271 @@
+// Multi-view alignment: the pose graph on its own (exact rings, a corrupted edge), AlignScans on
+// a synthetic ring of views of a bumpy closed surface, cancellation and bad input.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <atomic>
+#include <cmath>
+#include <numbers>
+#include <random>
+
+#include "mlsreg/multiview/align_scans.h"
+#include "mlsreg/multiview/pose_graph.h"
+
+namespace mlsreg {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+Matrix4 Pose(double yaw, const Vec3& t, const Vec3& axis = Vec3::UnitY()) {
+  Matrix4 m = Matrix4::Identity();
+  m.topLeftCorner<3, 3>() = Eigen::AngleAxisd(yaw, axis.normalized()).toRotationMatrix();
+  m.topRightCorner<3, 1>() = t;
+  return m;
+}
+
+double RotationErrorDeg(const Matrix4& a, const Matrix4& b) {
+  const Eigen::Matrix3d r = a.topLeftCorner<3, 3>().transpose() * b.topLeftCorner<3, 3>();
+  return Eigen::AngleAxisd(r).angle() * 180.0 / kPi;
+}
+
+double TranslationError(const Matrix4& a, const Matrix4& b) {
+  return (a.topRightCorner<3, 1>() - b.topRightCorner<3, 1>()).norm();
+}
+
+// ---- the pose graph
+
+std::vector<Matrix4> RingPoses(int n) {
+  std::vector<Matrix4> poses;
+  for (int i = 0; i < n; ++i) {
+    poses.push_back(Pose(2 * kPi * i / n, Vec3(std::cos(i), 0.1 * i, std::sin(0.5 * i))));
+  }
+  return poses;
+}
+
+std::vector<PoseGraphEdge> ExactRingEdges(const std::vector<Matrix4>& truth) {
+  const int n = static_cast<int>(truth.size());
+  Matrix6 information = Matrix6::Identity();
+  information.topLeftCorner<3, 3>() *= 1e4;  // rotation: a radian moves points by ~100 d
+  std::vector<PoseGraphEdge> edges;
+  for (int i = 0; i < n; ++i) {
+    const int j = (i + 1) % n;
+    edges.push_back({i, j, truth[i].inverse() * truth[j], information});
+  }
+  return edges;
+}
+
+TEST(PoseGraphTest, ExactMeasurementsGiveTheTruthFromAPerturbedStart) {
+  const std::vector<Matrix4> truth = RingPoses(8);
+  std::vector<Matrix4> start = truth;
+  for (int i = 1; i < 8; ++i) start[i] = Pose(0.1 * i, Vec3(0.2, -0.1, 0.05 * i)) * truth[i];
+  auto result = OptimisePoseGraph(start, ExactRingEdges(truth));
+  ASSERT_TRUE(result.ok()) << result.status();
+  for (int i = 0; i < 8; ++i) {
+    EXPECT_LT(RotationErrorDeg(result->poses[i], truth[i]), 1e-6) << i;
+    EXPECT_LT(TranslationError(result->poses[i], truth[i]), 1e-7) << i;
+  }
+  for (std::size_t e = 0; e < 8; ++e) {
+    EXPECT_TRUE(result->kept[e]);
+    EXPECT_LT(result->residual_after_d[e], 1e-6);
+  }
+}
+
+TEST(PoseGraphTest, ACorruptedEdgeIsDroppedAndTheOthersGiveTheTruth) {
+  const std::vector<Matrix4> truth = RingPoses(8);
+  std::vector<PoseGraphEdge> edges = ExactRingEdges(truth);
+  // One more edge per pose pair (i, i+2), so that dropping any single edge keeps the graph whole.
+  for (int i = 0; i < 8; ++i) {
+    const int j = (i + 2) % 8;
+    edges.push_back({i, j, truth[i].inverse() * truth[j], edges[0].information});
+  }
+  edges[3].measurement = Pose(20.0 * kPi / 180.0, Vec3(0.3, 0, 0), Vec3(1, 1, 0)) *
+                         edges[3].measurement;  // 20 degrees and 0.3 off
+  std::vector<Matrix4> start = truth;
+  for (int i = 1; i < 8; ++i) start[i] = Pose(0.05 * i, Vec3(0.05, 0, 0)) * truth[i];
+  auto result = OptimisePoseGraph(start, edges);
+  ASSERT_TRUE(result.ok()) << result.status();
+  for (std::size_t e = 0; e < edges.size(); ++e) EXPECT_EQ(result->kept[e], e != 3) << e;
+  EXPECT_GT(result->residual_after_d[3], 10.0);
+  for (int i = 0; i < 8; ++i) {
+    EXPECT_LT(RotationErrorDeg(result->poses[i], truth[i]), 1e-5) << i;
+    EXPECT_LT(TranslationError(result->poses[i], truth[i]), 1e-6) << i;
+  }
+}
+
+TEST(PoseGraphTest, AnEdgeThatIsTheOnlyLinkIsKeptEvenWhenItDisagrees) {
+  const std::vector<Matrix4> truth = RingPoses(4);
+  std::vector<PoseGraphEdge> edges = ExactRingEdges(truth);
+  edges.pop_back();  // a chain 0-1-2-3: every edge is a bridge
+  edges[1].measurement = Pose(0.5, Vec3(1, 0, 0)) * edges[1].measurement;
+  auto result = OptimisePoseGraph(truth, edges);
+  ASSERT_TRUE(result.ok());
+  for (bool kept : result->kept) EXPECT_TRUE(kept);
+}
+
+// ---- AlignScans on a ring of views
+
+// A closed, bumpy, non-symmetric surface: an ellipsoid whose radius carries bumps of several
+// frequencies, so that every partial view pins all six degrees of freedom.
+Vec3 SurfacePoint(const Vec3& direction) {
+  const Vec3 u = direction.normalized();
+  const double r = 1.0 + 0.15 * std::sin(5.0 * u.x() + 1.0) * std::cos(4.0 * u.y()) +
+                   0.12 * std::sin(6.0 * u.z() - 0.5) + 0.1 * u.x() * u.y();
+  return r * Vec3(1.2 * u.x(), 0.8 * u.y(), u.z());
+}
+
+struct Ring {
+  std::vector<PointCloud> scans;  // each in its own frame
+  std::vector<Matrix4> truth;     // scan i into the world
+};
+
+// `views` scans around the y axis, each of the part of the surface facing its camera, in the
+// camera's frame; `noise` along the radius.
+Ring MakeRing(int views, double noise, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  std::vector<Vec3> world;
+  while (world.size() < 24000) {
+    const Vec3 v(gauss(rng), gauss(rng), gauss(rng));
+    if (v.norm() > 1e-9) world.push_back(SurfacePoint(v));
+  }
+  Ring ring;
+  for (int i = 0; i < views; ++i) {
+    const double yaw = 2 * kPi * i / views;
+    const Vec3 facing(std::sin(yaw), 0.2, std::cos(yaw));
+    ring.truth.push_back(Pose(yaw, Vec3(0.3 * std::cos(yaw), 0.05 * i, 0.2)));
+    const Matrix4 to_scan = ring.truth.back().inverse();
+    PointCloud scan;
+    for (const Vec3& p : world) {
+      if (p.normalized().dot(facing.normalized()) < 0.25) continue;
+      const Vec3 noisy = p + noise * gauss(rng) * p.normalized();
+      scan.points.push_back(to_scan.topLeftCorner<3, 3>() * noisy + to_scan.topRightCorner<3, 1>());
+    }
+    ring.scans.push_back(std::move(scan));
+  }
+  return ring;
+}
+
+// The truth perturbed: up to `angle_deg` about a random axis and `shift` in a random direction.
+std::vector<Matrix4> PerturbedPoses(const std::vector<Matrix4>& truth, double angle_deg,
+                                    double shift, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  std::vector<Matrix4> out;
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    const Vec3 axis(gauss(rng), gauss(rng), gauss(rng));
+    const Vec3 dir = Vec3(gauss(rng), gauss(rng), gauss(rng)).normalized();
+    out.push_back(i == 0 ? truth[0] : Pose(angle_deg * kPi / 180.0, shift * dir, axis) * truth[i]);
+  }
+  return out;
+}
+
+TEST(AlignScansTest, ARingOfViewsIsRecoveredFromPerturbedPoses) {
+  const Ring ring = MakeRing(8, 0.0, 3);
+  AlignOptions options;
+  options.initial_poses = PerturbedPoses(ring.truth, 5.0, 0.05, 11);
+  options.threads = 2;
+  std::atomic<int> reported{0};
+  AlignCallbacks callbacks;
+  callbacks.on_edge = [&](const AlignEdge& edge, int done, int total) {
+    EXPECT_EQ(total, 8);
+    EXPECT_EQ(done, reported + 1);
+    EXPECT_GT(edge.overlap, 0.5) << edge.from << "-" << edge.to;
+    ++reported;
+  };
+  auto result = AlignScans(ring.scans, options, callbacks);
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_EQ(reported, 8);
+  ASSERT_EQ(result->poses.size(), 8u);
+  ASSERT_EQ(result->edges.size(), 8u);  // loop: 7 sequential + (7, 0)
+  EXPECT_EQ(result->edges.back().from, 7);
+  EXPECT_EQ(result->edges.back().to, 0);
+  const double d = result->sampling_distance;
+  for (int i = 0; i < 8; ++i) {
+    const Matrix4 expected = ring.truth[0].inverse() * ring.truth[i];  // in scan 0's frame
+    EXPECT_LT(RotationErrorDeg(result->poses[i], expected), 0.1) << i;
+    EXPECT_LT(TranslationError(result->poses[i], expected), 0.3 * d) << i;
+  }
+  for (const AlignEdge& e : result->edges) {
+    EXPECT_TRUE(e.kept);
+    EXPECT_GT(e.correspondences, 100);
+    EXPECT_LT(e.residual_after_d, 0.5);
+  }
+  EXPECT_LT(result->loop_closure_error_d, 1.0);
+  EXPECT_EQ(result->chain_deviation_d[0], 0.0);
+  const PointCloud merged = MergeScans(ring.scans, result->poses);
+  std::size_t total = 0;
+  for (const PointCloud& s : ring.scans) total += s.size();
+  EXPECT_EQ(merged.size(), total);
+}
+
+TEST(AlignScansTest, OverlapPairsAreThoseThatOverlapUnderTheInitialPoses) {
+  const Ring ring = MakeRing(6, 0.0, 5);
+  AlignOptions options;
+  options.initial_poses = ring.truth;
+  options.pairs = PairPolicy::kOverlap;
+  options.min_overlap = 0.3;
+  auto result = AlignScans(ring.scans, options);
+  ASSERT_TRUE(result.ok()) << result.status();
+  // Neighbours (60 degrees apart) overlap, opposite views (180 degrees) do not.
+  bool has_neighbour = false, has_opposite = false;
+  for (const AlignEdge& e : result->edges) {
+    has_neighbour |= (e.to - e.from == 1);
+    has_opposite |= (e.to - e.from == 3);
+  }
+  EXPECT_TRUE(has_neighbour);
+  EXPECT_FALSE(has_opposite);
+}
+
+TEST(AlignScansTest, AStopEndsTheJobAsCancelled) {
+  const Ring ring = MakeRing(6, 0.0, 7);
+  AlignOptions options;
+  options.initial_poses = ring.truth;
+  std::atomic<bool> stop{false};
+  AlignCallbacks callbacks;
+  callbacks.on_edge = [&](const AlignEdge&, int, int) { stop = true; };
+  callbacks.should_stop = [&] { return stop.load(); };
+  auto result = AlignScans(ring.scans, options, callbacks);
+  EXPECT_EQ(result.status().code(), absl::StatusCode::kCancelled) << result.status();
+}
+
+TEST(AlignScansTest, BadInputIsRefusedNamingTheField) {
+  const Ring ring = MakeRing(4, 0.0, 9);
+  const auto status = [&](std::vector<PointCloud> scans, AlignOptions options) {
+    return AlignScans(scans, options).status();
+  };
+  AlignOptions options;
+  auto s = status({ring.scans[0]}, options);
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(s.message(), "scans: need at least 2, got 1");
+
+  options.initial_poses = {ring.truth[0], ring.truth[1]};
+  s = status(ring.scans, options);
+  EXPECT_EQ(s.message(), "initial_poses: 2 poses for 4 scans");
+
+  options.initial_poses = ring.truth;
+  options.initial_poses[2](0, 0) = 2.0;
+  s = status(ring.scans, options);
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(s.message().find("initial_poses[2]"), std::string_view::npos) << s.message();
+
+  // Overlap pairs from poses that put scan 3 far away: nothing joins it.
+  options.initial_poses = ring.truth;
+  options.initial_poses[3] = Pose(0.0, Vec3(100, 0, 0)) * ring.truth[3];
+  options.pairs = PairPolicy::kOverlap;
+  s = status(ring.scans, options);
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(s.message().find("does not join every scan: 3 not reached from scan 0"),
+            std::string_view::npos)
+      << s.message();
+
+  options = AlignOptions{};
+  options.anchor = 4;
+  EXPECT_NE(status(ring.scans, options).message().find("anchor"), std::string_view::npos);
+  std::vector<PointCloud> tiny = ring.scans;
+  tiny[1].points.resize(3);
+  s = status(tiny, AlignOptions{});
+  EXPECT_NE(s.message().find("scans[1]"), std::string_view::npos) << s.message();
+}
+
+}  // namespace
+}  // namespace mlsreg
