@@ -24,6 +24,7 @@ struct AlignArgs {
   std::vector<std::string> scans;
   std::string poses, gt, out, merged, json, pairs = "loop";
   double min_overlap = AlignOptions().min_overlap;
+  double overlap_distance_d = AlignOptions().overlap_distance_d;
   int anchor = 0;
   int threads = HardwareThreads();
   RegistrationFlags flags{Method::kMlsSicp};
@@ -65,6 +66,7 @@ int RunAlign(const AlignArgs& args) {
   options.edge = *edge_options;
   options.pairs = *policy;
   options.min_overlap = args.min_overlap;
+  options.overlap_distance_d = args.overlap_distance_d;
   options.anchor = args.anchor;
   options.threads = std::max(1, args.threads);
   if (!args.poses.empty()) {
@@ -95,11 +97,12 @@ int RunAlign(const AlignArgs& args) {
 
   std::printf("\nedges (disagreement with the optimised poses, units of d = %.6g):\n",
               result->sampling_distance);
-  std::printf("  %-24s %-24s %8s %8s %6s\n", "target", "source", "before", "after", "kept");
+  std::printf("  %-24s %-24s %8s %8s %8s %6s\n", "target", "source", "overlap", "before", "after",
+              "kept");
   for (const AlignEdge& e : result->edges) {
-    std::printf("  %-24s %-24s %8.3f %8.3f %6s\n", Name(args.scans[e.from]).c_str(),
-                Name(args.scans[e.to]).c_str(), e.residual_before_d, e.residual_after_d,
-                e.kept ? "yes" : "NO");
+    std::printf("  %-24s %-24s %7.1f%% %8.3f %8.3f %6s\n", Name(args.scans[e.from]).c_str(),
+                Name(args.scans[e.to]).c_str(), 100.0 * e.overlap, e.residual_before_d,
+                e.residual_after_d, e.kept ? "yes" : (e.trusted ? "NO" : "NO (overlap)"));
   }
   if (options.pairs == PairPolicy::kLoop) {
     std::printf("loop closure of the chained edges: %.3f deg, %.3f d\n",
@@ -167,6 +170,7 @@ int RunAlign(const AlignArgs& args) {
            {"correspondences", e.correspondences},
            {"residual_before_d", e.residual_before_d},
            {"residual_after_d", e.residual_after_d},
+           {"trusted", e.trusted},
            {"kept", e.kept}});
     }
     std::ofstream out(args.json);
@@ -194,7 +198,11 @@ CommandRunner AddAlignCommand(CLI::App& app) {
                   "overlapping under the initial poses)")
       ->capture_default_str();
   cmd->add_option("--min-overlap", args->min_overlap,
-                  "--pairs overlap: share of a scan on the other's MLS surface to pair them")
+                  "--pairs overlap: share of a scan within --overlap-distance of the other "
+                  "(under the initial poses) to pair them")
+      ->capture_default_str();
+  cmd->add_option("--overlap-distance", args->overlap_distance_d,
+                  "--pairs overlap: that distance, units of d")
       ->capture_default_str();
   cmd->add_option("--anchor", args->anchor, "the scan whose frame the poses are in")
       ->capture_default_str();

@@ -32,20 +32,10 @@ bash scripts/install-deps.sh
 bash scripts/build.sh
 mkdir -p "$OUT"
 
-# ---- meshes -------------------------------------------------------------------------------------
-meshes_dir=$BUILD_DIR/eval-meshes
-mkdir -p "$meshes_dir"
-bunny_mesh=$SHARED/data/real/stanford_bunny/reconstruction/bun_zipper.ply
-cgal_meshes=()
-for m in $EVAL_MESHES; do [ "$m" = bunny ] || cgal_meshes+=("$m"); done
-[ ${#cgal_meshes[@]} -eq 0 ] || bash scripts/fetch-cgal-meshes.sh "$meshes_dir" "${cgal_meshes[@]}"
-
-# ---- virtual scans ------------------------------------------------------------------------------
+# ---- meshes and virtual scans -------------------------------------------------------------------
+source scripts/lib-meshes.sh
+fetch_eval_meshes
 t=$(now)
-scan_args=()
-for m in $EVAL_MESHES; do
-  if [ "$m" = bunny ]; then scan_args+=(--mesh "bunny=$bunny_mesh"); else scan_args+=(--mesh "$m=$meshes_dir/$m.off"); fi
-done
 rm -rf "$OUT/scans"
 "$SCAN" "${scan_args[@]}" --out "$OUT/scans" | tee "$OUT/scan.log"
 t_scan=$(elapsed "$t")

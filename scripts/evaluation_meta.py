@@ -3,8 +3,9 @@
 
 Usage: evaluation_meta.py --out meta.json --scan-log scan.log --wall scan=1.0 total=2.0 ...
                           --bunny-mesh PATH --meshes-dir DIR --notes docs/evaluation-notes.md
-The notes file holds three sections, "## Parameters", "## Tuning split" and "## Registration from
-any start" (the figures of scripts/any-start.sh), copied verbatim.
+The notes file holds four sections, "## Parameters", "## Tuning split", "## Registration from
+any start" (the figures of scripts/any-start.sh) and "## Many scans into one frame"
+(scripts/multiview-eval.sh), copied verbatim.
 """
 import argparse
 import datetime
@@ -65,7 +66,8 @@ def notes(path):
                 sections[current] += line
     return {"parameters": sections.get("parameters", "").strip(),
             "tuning": sections.get("tuning split", "").strip(),
-            "any_start": sections.get("registration from any start", "").strip()}
+            "any_start": sections.get("registration from any start", "").strip(),
+            "multiview": sections.get("many scans into one frame", "").strip()}
 
 
 def main():

@@ -470,7 +470,8 @@ def meta_section(meta):
         lines += ["", "Synthetic meshes:", ""] + table(["mesh"] + cols, body)
     lines.append("")
     for key, title in (("parameters", "Parameters"), ("tuning", "Tuning split"),
-                       ("any_start", "Registration from any start")):
+                       ("any_start", "Registration from any start"),
+                       ("multiview", "Many scans into one frame")):
         if meta.get(key):
             lines += ["## " + title, "", str(meta[key]).rstrip(), ""]
     return lines

@@ -38,7 +38,9 @@ j = json.load(open(sys.argv[1]))
 assert len(j["scans"]) == 4 and len(j["edges"]) >= 4, j
 for s in j["scans"]:
     assert s["rotation_error_deg"] < 0.5 and s["translation_error_d"] < 2.0, s
-assert all(e["kept"] for e in j["edges"]), j["edges"]
+# Every edge that verified is kept; one that did not (bun090 and bun315, 135 degrees apart, share
+# too little) is left out.
+assert all(e["kept"] == e["trusted"] for e in j["edges"]), j["edges"]
 conf = [l.split() for l in open(sys.argv[2])]
 assert [c[1] for c in conf] == ["bun000.ply", "bun045.ply", "bun090.ply", "bun315.ply"], conf
 PY

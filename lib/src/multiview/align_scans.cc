@@ -77,6 +77,17 @@ Information EdgeInformation(const Target& from, const Samples& to, const Matrix4
   return info;
 }
 
+// The share of `points` (under `relative`) with a point of `target` within `distance`.
+double NearShare(const Target& target, const std::vector<Vec3>& points, const Matrix4& relative,
+                 double distance) {
+  if (points.empty()) return 0.0;
+  int near = 0;
+  for (const Vec3& p : points) {
+    near += target.tree().Nearest(Apply(relative, p)).distance_squared <= distance * distance;
+  }
+  return static_cast<double>(near) / static_cast<double>(points.size());
+}
+
 double NoiseOf(const Target& a, const Target& b) {
   return std::max(a.noise().sigma_d, b.noise().sigma_d);
 }
@@ -155,6 +166,9 @@ absl::Status Validate(const std::vector<PointCloud>& scans, const AlignOptions& 
   }
   if (!(options.min_overlap >= 0.0 && options.min_overlap <= 1.0)) {
     return absl::InvalidArgumentError("min_overlap: must be in [0, 1]");
+  }
+  if (!(options.overlap_distance_d > 0.0 && options.overlap_distance_d <= 1000.0)) {
+    return absl::InvalidArgumentError("overlap_distance_d: must be in (0, 1000]");
   }
   if (options.threads < 1) return absl::InvalidArgumentError("threads: must be >= 1");
   return ValidateOptions(options.edge);
@@ -235,10 +249,10 @@ absl::StatusOr<AlignResult> AlignScans(const std::vector<PointCloud>& scans,
     std::vector<std::pair<int, int>> overlapping;
     for (const auto& [i, j] : pairs) {
       const Matrix4 relative = initial[i].inverse() * initial[j];
-      const VerificationScore score =
-          VerifyAlignment(*targets[i], samples[j].points, samples[j].normals, samples[j].oriented,
-                          relative, NoiseOf(*targets[i], *targets[j]));
-      if (score.inlier_fraction >= options.min_overlap) overlapping.emplace_back(i, j);
+      if (NearShare(*targets[i], samples[j].points, relative, options.overlap_distance_d * d) >=
+          options.min_overlap) {
+        overlapping.emplace_back(i, j);
+      }
     }
     pairs = std::move(overlapping);
   }
@@ -300,8 +314,7 @@ absl::StatusOr<AlignResult> AlignScans(const std::vector<PointCloud>& scans,
     return s;
   }
 
-  // 4. The pose graph, started from the chained poses.
-  result.chained_poses = ChainedPoses(n, options.anchor, result.edges, Matrix4::Identity());
+  // 4. The pose graph, started from poses chained along trusted edges first.
   // Each edge weighs by its share of the correspondences: xi^T information xi is then the
   // mean squared displacement over its overlap (units of d^2) times its count over the mean.
   double mean_correspondences = 0.0;
@@ -309,8 +322,21 @@ absl::StatusOr<AlignResult> AlignScans(const std::vector<PointCloud>& scans,
   mean_correspondences = std::max(1.0, mean_correspondences / result.edges.size());
   std::vector<PoseGraphEdge> graph;
   for (const AlignEdge& e : result.edges) {
-    graph.push_back(
-        {e.from, e.to, e.relative, e.information * (e.correspondences / mean_correspondences)});
+    // A registration that leaves less of the source on the target's surface than the pairing
+    // asked for (or found too few correspondences) did not find the overlap: not trusted.
+    const bool trusted = e.overlap >= options.min_overlap &&
+                         e.registration.termination != Termination::kTooFewCorrespondences;
+    graph.push_back({e.from, e.to, e.relative,
+                     e.information * (e.correspondences / mean_correspondences), trusted});
+  }
+  {
+    std::vector<AlignEdge> trusted_first;
+    for (int pass = 0; pass < 2; ++pass) {
+      for (std::size_t e = 0; e < graph.size(); ++e) {
+        if (graph[e].trusted == (pass == 0)) trusted_first.push_back(result.edges[e]);
+      }
+    }
+    result.chained_poses = ChainedPoses(n, options.anchor, trusted_first, Matrix4::Identity());
   }
   PoseGraphOptions graph_options = options.graph;
   graph_options.anchor = options.anchor;
@@ -322,6 +348,7 @@ absl::StatusOr<AlignResult> AlignScans(const std::vector<PointCloud>& scans,
     result.edges[e].residual_before_d = solved->residual_before_d[e];
     result.edges[e].residual_after_d = solved->residual_after_d[e];
     result.edges[e].kept = solved->kept[e];
+    result.edges[e].trusted = graph[e].trusted;
   }
 
   // 5. What the graph changed: drift of the chain, and the loop's closure.

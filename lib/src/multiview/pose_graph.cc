@@ -155,6 +155,11 @@ absl::StatusOr<PoseGraphResult> OptimisePoseGraph(const std::vector<Matrix4>& in
     result.residual_before_d.push_back(EdgeResidual(edge, initial));
   PoseBlocks blocks(initial);
   std::vector<bool> use(edges.size(), true);
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    if (edges[e].trusted) continue;
+    use[e] = false;
+    if (!IsConnected(n, edges, &use)) use[e] = true;
+  }
   result.iterations += Solve(blocks, edges, use, options, /*robust=*/true);
   // Drop the edges that still disagree, worst first, while the graph stays connected.
   std::vector<Matrix4> robust_poses = blocks.Poses();
@@ -167,6 +172,7 @@ absl::StatusOr<PoseGraphResult> OptimisePoseGraph(const std::vector<Matrix4>& in
   bool dropped = false;
   for (std::size_t e : order) {
     if (disagreement[e] <= options.reject_above_d) break;
+    if (!use[e]) continue;
     use[e] = false;
     if (!IsConnected(n, edges, &use)) {
       use[e] = true;

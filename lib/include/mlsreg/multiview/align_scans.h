@@ -32,9 +32,13 @@ struct AlignOptions {
   // frame already, e.g. from a turntable's angles or a robot's odometry applied upstream).
   std::vector<Matrix4> initial_poses;
   PairPolicy pairs = PairPolicy::kLoop;
-  // kOverlap: a pair is registered when at least this share of one scan's samples lies on the
-  // other's MLS surface under the initial poses (the verification score of method auto).
+  // Every policy: an edge whose registration leaves less than `min_overlap` of its source on the
+  // target's MLS surface is not trusted (left out of the pose graph unless it is needed).
+  // kOverlap: a pair is registered when at least `min_overlap` of one scan's samples lie within
+  // `overlap_distance_d` of the other scan under the initial poses. Generous, as the poses are
+  // rough: a 10 degree error moves the rim of a scan 230 d across by 20 d.
   double min_overlap = 0.3;
+  double overlap_distance_d = 20.0;
   // Every edge's registration; the method defaults to MLS-SICP.
   RegistrationOptions edge = [] {
     RegistrationOptions o;
@@ -54,7 +58,8 @@ struct AlignEdge {
   int correspondences = 0;  // behind the information matrix
   Matrix6 information = Matrix6::Zero();
   double residual_before_d = 0.0, residual_after_d = 0.0;  // pose_graph.h
-  bool kept = true;                                        // used by the final solve
+  bool trusted = true;  // its registration verified (overlap >= min_overlap)
+  bool kept = true;     // used by the final solve
 };
 
 struct AlignResult {

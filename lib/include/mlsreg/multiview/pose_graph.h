@@ -21,6 +21,9 @@ struct PoseGraphEdge {
   int from = 0, to = 0;
   Matrix4 measurement = Matrix4::Identity();
   Matrix6 information = Matrix6::Identity();
+  // An untrusted edge (e.g. a registration that did not verify) is left out from the start,
+  // unless the graph would fall apart without it.
+  bool trusted = true;
 };
 
 struct PoseGraphOptions {
@@ -42,8 +45,9 @@ struct PoseGraphResult {
 // The disagreement of an edge at the given poses (units of d).
 double EdgeResidual(const PoseGraphEdge& edge, const std::vector<Matrix4>& poses);
 
-// Starts from `initial` (one pose per node). An edge is only dropped while the graph stays
-// connected without it (the worst first). InvalidArgument for bad indices or sizes.
+// Starts from `initial` (one pose per node). Untrusted edges are left out, then edges that still
+// disagree after the robust solve are dropped, worst first; an edge is only ever left out while
+// the graph stays connected without it. InvalidArgument for bad indices or sizes.
 absl::StatusOr<PoseGraphResult> OptimisePoseGraph(const std::vector<Matrix4>& initial,
                                                   const std::vector<PoseGraphEdge>& edges,
                                                   const PoseGraphOptions& options = {});
