@@ -31,12 +31,12 @@ from typing import Any, Callable, Iterator, Optional, Sequence
 import numpy as np
 
 from . import _mlsreg
-from ._mlsreg import Error, Target, methods, parameters
+from ._mlsreg import Error, Target, methods, parameters, read_poses
 
 __all__ = [
     "Cloud", "Target", "IterationReport", "Result", "PoseError", "BatchOutcome", "Client",
     "RegistrationStream", "Error", "read_cloud", "register", "evaluate", "methods", "parameters",
-    "TRACE_DTYPE",
+    "TRACE_DTYPE", "AlignResult", "align_scans", "read_poses",
 ]
 
 __version__ = "0.1.0"
@@ -186,6 +186,38 @@ def evaluate(result: Result, gt, source=None, success_threshold_d: float = 5.0) 
         raise ValueError("source: the result does not hold its source; pass source=")
     return PoseError(**_mlsreg._evaluate(source, result.transform, gt, result.sampling_distance,
                                          success_threshold_d))
+
+
+@dataclasses.dataclass
+class AlignResult:
+    """Many scans in one frame: ``poses[i]`` maps scan i into the anchor's frame (4x4);
+    ``edges`` are the pairwise registrations (dicts: from, to, relative, overlap,
+    residual_before_d, residual_after_d, trusted, kept, ...)."""
+
+    poses: list
+    chained_poses: list
+    edges: list
+    chain_deviation_d: list
+    loop_closure_rotation_deg: float
+    loop_closure_error_d: float
+    sampling_distance: float
+    graph_iterations: int
+    seconds: float
+
+
+def align_scans(scans: Sequence, poses=None, pairs: str = "loop", method: str = "mls-sicp",
+                min_overlap: float = 0.3, overlap_distance_d: float = 20.0, anchor: int = 0,
+                threads: int = 1, callback: Optional[Callable[[dict, int, int], Any]] = None,
+                **params) -> AlignResult:
+    """Aligns many scans into the frame of scan ``anchor``: pairwise registrations
+    (``method``, MLS-SICP by default, with ``params`` from the parameter table) along ``pairs``
+    ("sequential", "loop" or "overlap"), then a pose graph that drops edges that disagree.
+    ``poses`` are initial poses (scan -> common frame), e.g. from ``read_poses``.
+    ``callback(edge, done, total)`` runs after each edge; returning False cancels (mlsreg.Error,
+    code CANCELLED). The GIL is released while aligning."""
+    raw = _mlsreg._align_scans(list(scans), poses, pairs, method, min_overlap,
+                               overlap_distance_d, anchor, threads, callback, params)
+    return AlignResult(**raw)
 
 
 @dataclasses.dataclass

@@ -5,11 +5,15 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <atomic>
+
 #include "absl/strings/str_cat.h"
 #include "mlsreg/client/client.h"
 #include "mlsreg/evaluation/metrics.h"
 #include "mlsreg/geometry/target.h"
 #include "mlsreg/io/io.h"
+#include "mlsreg/io/pose_files.h"
+#include "mlsreg/multiview/align_scans.h"
 #include "mlsreg/registration/method.h"
 #include "mlsreg/registration/parameters.h"
 #include "mlsreg/registration/registration.h"
@@ -161,6 +165,93 @@ void BindLocal(py::module_& m) {
   });
 }
 
+py::dict AlignEdgeToPython(const AlignEdge& e) {
+  return py::dict(py::arg("from") = e.from, py::arg("to") = e.to,
+                  py::arg("relative") = Matrix4(e.relative),
+                  py::arg("termination") = std::string(TerminationName(e.registration.termination)),
+                  py::arg("iterations") = e.registration.iterations, py::arg("overlap") = e.overlap,
+                  py::arg("correspondences") = e.correspondences,
+                  py::arg("residual_before_d") = e.residual_before_d,
+                  py::arg("residual_after_d") = e.residual_after_d, py::arg("trusted") = e.trusted,
+                  py::arg("kept") = e.kept);
+}
+
+py::dict AlignScansFromPython(const py::list& scans, py::object poses, const std::string& pairs,
+                              const std::string& method, double min_overlap,
+                              double overlap_distance_d, int anchor, int threads,
+                              py::object callback, const py::dict& params) {
+  std::vector<PointCloud> clouds;
+  for (std::size_t i = 0; i < scans.size(); ++i) {
+    clouds.push_back(CloudFromPython(scans[i], absl::StrCat("scans[", i, "]")));
+  }
+  AlignOptions options;
+  options.edge = OptionsFromPython(method, params);
+  options.pairs = ValueOrThrow(ParseEnum<PairPolicy>(PairPolicyNames(), pairs, "pairs"));
+  options.min_overlap = min_overlap;
+  options.overlap_distance_d = overlap_distance_d;
+  options.anchor = anchor;
+  options.threads = threads;
+  if (!poses.is_none()) {
+    std::size_t i = 0;
+    for (py::handle pose : poses) {
+      options.initial_poses.push_back(TransformFromPython(pose, absl::StrCat("poses[", i++, "]")));
+    }
+  }
+  std::atomic<bool> stop{false};
+  std::unique_ptr<py::error_already_set> error;
+  AlignCallbacks callbacks;
+  callbacks.should_stop = [&] { return stop.load(); };
+  if (!callback.is_none()) {
+    callbacks.on_edge = [&](const AlignEdge& edge, int done, int total) {
+      py::gil_scoped_acquire gil;
+      if (stop.load()) return;
+      try {
+        py::object answer = callback(AlignEdgeToPython(edge), done, total);
+        if (!answer.is_none() && !py::bool_(answer)) stop.store(true);
+      } catch (py::error_already_set& e) {
+        error = std::make_unique<py::error_already_set>(std::move(e));
+        stop.store(true);
+      }
+    };
+  }
+  absl::StatusOr<AlignResult> result;
+  {
+    py::gil_scoped_release release;
+    result = AlignScans(clouds, options, callbacks);
+  }
+  if (error) {
+    py::error_already_set e = std::move(*error);
+    throw e;
+  }
+  const AlignResult& r = ValueOrThrow(std::move(result));
+  py::list out_poses, chained, edges;
+  for (const Matrix4& p : r.poses) out_poses.append(Matrix4(p));
+  for (const Matrix4& p : r.chained_poses) chained.append(Matrix4(p));
+  for (const AlignEdge& e : r.edges) edges.append(AlignEdgeToPython(e));
+  return py::dict(py::arg("poses") = out_poses, py::arg("chained_poses") = chained,
+                  py::arg("edges") = edges, py::arg("chain_deviation_d") = r.chain_deviation_d,
+                  py::arg("loop_closure_rotation_deg") = r.loop_closure_rotation_deg,
+                  py::arg("loop_closure_error_d") = r.loop_closure_error_d,
+                  py::arg("sampling_distance") = r.sampling_distance,
+                  py::arg("graph_iterations") = r.graph_iterations, py::arg("seconds") = r.seconds);
+}
+
+void BindMultiview(py::module_& m) {
+  m.def("_align_scans", &AlignScansFromPython, py::arg("scans"), py::arg("poses"), py::arg("pairs"),
+        py::arg("method"), py::arg("min_overlap"), py::arg("overlap_distance_d"), py::arg("anchor"),
+        py::arg("threads"), py::arg("callback"), py::arg("params"));
+  m.def(
+      "read_poses",
+      [](const std::string& path, const std::vector<std::string>& scan_paths) {
+        py::list out;
+        for (const Matrix4& p : ValueOrThrow(ReadPoses(path, scan_paths))) out.append(Matrix4(p));
+        return out;
+      },
+      py::arg("path"), py::arg("scan_paths"),
+      "Poses (scan -> common frame) from a .conf (Stanford bmesh lines, rotation R(q)^T) or a "
+      "file of 16 row-major numbers per line, one 4x4 array per scan path.");
+}
+
 void BindClient(py::module_& m) {
   using client::Client;
   py::class_<Client>(m, "_Client")
@@ -303,5 +394,6 @@ PYBIND11_MODULE(_mlsreg, m) {
     }
   });
   BindLocal(m);
+  BindMultiview(m);
   BindClient(m);
 }

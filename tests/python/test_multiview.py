@@ -1,0 +1,67 @@
+"""mlsreg.align_scans and read_poses: real bunny scans against bun.conf, cancellation and bad
+input."""
+
+import numpy as np
+import pytest
+
+import mlsreg
+from conftest import SOURCE_DIR
+
+BUNNY = SOURCE_DIR.parent / "shared" / "data" / "real" / "stanford_bunny"
+NAMES = ["bun000.ply", "bun045.ply", "bun315.ply"]
+
+pytestmark = pytest.mark.skipif(not (BUNNY / "bun.conf").exists(), reason="no bunny data")
+
+
+@pytest.fixture(scope="module")
+def scans():
+    return [mlsreg.read_cloud(BUNNY / n) for n in NAMES]
+
+
+@pytest.fixture(scope="module")
+def truth():
+    return mlsreg.read_poses(str(BUNNY / "bun.conf"), [str(BUNNY / n) for n in NAMES])
+
+
+def rotation_deg(a, b):
+    r = a[:3, :3].T @ b[:3, :3]
+    return np.degrees(np.arccos(np.clip((np.trace(r) - 1) / 2, -1, 1)))
+
+
+def test_the_bunny_ring_is_aligned_to_its_ground_truth(scans, truth):
+    start = [truth[0]] + [p.copy() for p in truth[1:]]
+    for p in start[1:]:
+        p[:3, 3] += 0.002  # about 3.4 d off
+    edges = []
+    result = mlsreg.align_scans(scans, poses=start, threads=2,
+                                callback=lambda e, done, total: edges.append((done, total)))
+    assert isinstance(result, mlsreg.AlignResult) and len(result.poses) == 3
+    assert sorted(edges) == [(1, 3), (2, 3), (3, 3)]  # loop of 3: (0,1), (1,2), (2,0)
+    d = result.sampling_distance
+    to0 = np.linalg.inv(truth[0])
+    for pose, t in zip(result.poses, truth):
+        expected = to0 @ t
+        assert rotation_deg(pose, expected) < 0.5
+        assert np.linalg.norm(pose[:3, 3] - expected[:3, 3]) < 2 * d
+    assert all(e["kept"] for e in result.edges)
+
+
+def test_a_callback_returning_false_cancels(scans, truth):
+    with pytest.raises(mlsreg.Error) as raised:
+        mlsreg.align_scans(scans, poses=truth, callback=lambda e, done, total: False)
+    assert raised.value.code == "CANCELLED"
+
+
+def test_bad_input_raises_value_error(scans, truth):
+    with pytest.raises(ValueError, match="scans: need at least 2, got 1"):
+        mlsreg.align_scans(scans[:1])
+    with pytest.raises(ValueError, match="initial_poses: 2 poses for 3 scans"):
+        mlsreg.align_scans(scans, poses=truth[:2])
+    with pytest.raises(ValueError, match="pairs"):
+        mlsreg.align_scans(scans, pairs="ring")
+    with pytest.raises(ValueError, match=r"scans\[1\]: dtype int64"):
+        mlsreg.align_scans([scans[0].points, scans[1].points.astype(np.int64)])
+    with pytest.raises(ValueError, match="max_iterations"):
+        mlsreg.align_scans(scans, max_iterations=0)
+    with pytest.raises(ValueError, match="no 'bmesh nope.ply' line"):
+        mlsreg.read_poses(str(BUNNY / "bun.conf"), ["nope.ply"])
