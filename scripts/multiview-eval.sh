@@ -8,7 +8,9 @@
 #
 #   bash scripts/multiview-eval.sh
 #
-# Environment: BUILD_DIR (build), OUT (default $BUILD_DIR/multiview), SCANS (virtual scans of the
+# Environment: BUILD_DIR (build), OUT (default $BUILD_DIR/multiview), TUNING_SCANS (the tuning
+# split's scans, where Open3D's correspondence distance is tuned; scanned here when missing),
+# SCANS (virtual scans of the
 # evaluation meshes; default: $BUILD_DIR/evaluation/scans when scripts/evaluate.sh made them,
 # else scanned here), EVAL_MESHES (default "bunny camel cow fandisk triceratops"), SHARED.
 set -euo pipefail
@@ -27,8 +29,18 @@ if [ ! -d "$SCANS" ]; then
   SCANS=$OUT/scans
   [ -d "$SCANS" ] || "$BUILD_DIR/tools/scan/mlsreg-scan" "${scan_args[@]}" --out "$SCANS"
 fi
+# Open3D's correspondence distance is tuned on the tuning split (scripts/tuning-split.sh's scans).
+TUNING_SCANS=${TUNING_SCANS:-$BUILD_DIR/tuning/scans}
+if [ ! -f "$TUNING_SCANS/.done" ]; then
+  bash scripts/fetch-cgal-meshes.sh "$meshes_dir" elephant armadillo dino homer
+  tuning_args=()
+  for m in elephant armadillo dino homer; do tuning_args+=(--mesh "$m=$meshes_dir/$m.off"); done
+  rm -rf "$TUNING_SCANS"
+  "$BUILD_DIR/tools/scan/mlsreg-scan" "${tuning_args[@]}" --out "$TUNING_SCANS" > /dev/null
+  touch "$TUNING_SCANS/.done"
+fi
 /usr/bin/python3 scripts/multiview_eval.py --mlsreg "$BUILD_DIR/mlsreg" --scans "$SCANS" \
-  --shared "$SHARED" --out "$OUT" "${scan_args[@]}"
+  --shared "$SHARED" --out "$OUT" --tuning-scans "$TUNING_SCANS" "${scan_args[@]}"
 /usr/bin/python3 scripts/multiview_summary.py "$OUT/multiview.csv" \
   --figure docs/figures/multiview_pose_error.png > "$OUT/multiview.md"
 cp "$OUT/multiview.csv" docs/figures/multiview.csv
