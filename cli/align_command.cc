@@ -13,6 +13,7 @@
 #include "cli/exit_codes.h"
 #include "cli/registration_flags.h"
 #include "mlsreg/core/parallel_for.h"
+#include "mlsreg/evaluation/metrics.h"
 #include "mlsreg/io/io.h"
 #include "mlsreg/io/pose_files.h"
 #include "mlsreg/multiview/align_scans.h"
@@ -38,11 +39,6 @@ int Fail(const absl::Status& status) {
 std::string Name(const std::string& path) {
   const std::size_t slash = path.find_last_of('/');
   return slash == std::string::npos ? path : path.substr(slash + 1);
-}
-
-double RotationDeg(const Matrix4& a, const Matrix4& b) {
-  const Eigen::Matrix3d r = a.topLeftCorner<3, 3>().transpose() * b.topLeftCorner<3, 3>();
-  return Eigen::AngleAxisd(r).angle() * 180.0 / M_PI;
 }
 
 nlohmann::json Row(const Matrix4& m) {
@@ -114,10 +110,10 @@ int RunAlign(const AlignArgs& args) {
     const Matrix4 to_anchor = truth[args.anchor].inverse();
     for (std::size_t i = 0; i < truth.size(); ++i) {
       const Matrix4 expected = to_anchor * truth[i];
-      rotation_error.push_back(RotationDeg(result->poses[i], expected));
-      translation_error.push_back(
-          (result->poses[i].topRightCorner<3, 1>() - expected.topRightCorner<3, 1>()).norm() /
-          result->sampling_distance);
+      const PoseError error =
+          EvaluatePose(scans[i].points, result->poses[i], expected, result->sampling_distance);
+      rotation_error.push_back(error.rotation_deg);
+      translation_error.push_back(error.translation_d);
     }
   }
   std::printf("\nposes (scan -> frame of %s, row-major):\n", Name(args.scans[args.anchor]).c_str());

@@ -1,6 +1,7 @@
-// CallbackBridge: a Python per-iteration callback called from a registration that runs without
-// the GIL. Each call takes the GIL; the callback returning False (or raising, or Ctrl-C) stops
-// the registration at its next poll, and the exception is raised again once it has returned.
+// CallbackBridge: a Python callback called from library work that runs without the GIL (a
+// registration's iterations, AlignScans' edges). Each call takes the GIL; the callback returning
+// False (or raising, or Ctrl-C) stops the work at its next poll, and the exception is raised
+// again once it has returned.
 #pragma once
 
 #include <pybind11/pybind11.h>
@@ -23,18 +24,25 @@ class CallbackBridge {
     }
   }
 
-  // Called without the GIL, from the registration's thread.
-  void OnIteration(const IterationReport& report) {
+  // Called without the GIL (from any thread, one at a time): takes the GIL and calls
+  // `call(callback)`, which passes the callback its arguments and returns its answer.
+  template <class Call>
+  void Invoke(Call call) {
     if (callback_.is_none() || stop_.load()) return;
     py::gil_scoped_acquire gil;
     try {
       if (PyErr_CheckSignals() != 0) throw py::error_already_set();
-      py::object answer = callback_(ReportToPython(report));
+      py::object answer = call(callback_);
       if (!answer.is_none() && !py::bool_(answer)) stop_.store(true);
     } catch (py::error_already_set& e) {
       error_ = std::make_unique<py::error_already_set>(std::move(e));
       stop_.store(true);
     }
+  }
+
+  // A registration's per-iteration callback.
+  void OnIteration(const IterationReport& report) {
+    Invoke([&](const py::object& callback) { return callback(ReportToPython(report)); });
   }
   bool ShouldStop() const { return stop_.load(); }
   const std::atomic<bool>* stop_flag() const { return &stop_; }

@@ -5,8 +5,6 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
-#include <atomic>
-
 #include "absl/strings/str_cat.h"
 #include "mlsreg/client/client.h"
 #include "mlsreg/evaluation/metrics.h"
@@ -197,32 +195,18 @@ py::dict AlignScansFromPython(const py::list& scans, py::object poses, const std
       options.initial_poses.push_back(TransformFromPython(pose, absl::StrCat("poses[", i++, "]")));
     }
   }
-  std::atomic<bool> stop{false};
-  std::unique_ptr<py::error_already_set> error;
+  CallbackBridge bridge(std::move(callback));
   AlignCallbacks callbacks;
-  callbacks.should_stop = [&] { return stop.load(); };
-  if (!callback.is_none()) {
-    callbacks.on_edge = [&](const AlignEdge& edge, int done, int total) {
-      py::gil_scoped_acquire gil;
-      if (stop.load()) return;
-      try {
-        py::object answer = callback(AlignEdgeToPython(edge), done, total);
-        if (!answer.is_none() && !py::bool_(answer)) stop.store(true);
-      } catch (py::error_already_set& e) {
-        error = std::make_unique<py::error_already_set>(std::move(e));
-        stop.store(true);
-      }
-    };
-  }
+  callbacks.should_stop = [&bridge] { return bridge.ShouldStop(); };
+  callbacks.on_edge = [&bridge](const AlignEdge& edge, int done, int total) {
+    bridge.Invoke([&](const py::object& f) { return f(AlignEdgeToPython(edge), done, total); });
+  };
   absl::StatusOr<AlignResult> result;
   {
     py::gil_scoped_release release;
     result = AlignScans(clouds, options, callbacks);
   }
-  if (error) {
-    py::error_already_set e = std::move(*error);
-    throw e;
-  }
+  bridge.RaiseIfFailed();
   const AlignResult& r = ValueOrThrow(std::move(result));
   py::list out_poses, chained, edges;
   for (const Matrix4& p : r.poses) out_poses.append(Matrix4(p));

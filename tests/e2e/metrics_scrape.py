@@ -66,6 +66,13 @@ def scrape(url):
         return parse(response.read().decode())
 
 
+# A --metrics-listen that cannot be bound stops the server at start, naming the setting.
+for bad in ["nonsense", "127.0.0.1:99999"]:
+    done = subprocess.run([MLSREG, "serve", "--listen", "127.0.0.1:0", "--metrics-listen", bad],
+                          capture_output=True, text=True, timeout=60)
+    if done.returncode != 1 or f"metrics_listen: cannot listen on {bad}" not in done.stderr + done.stdout:
+        fail(f"--metrics-listen {bad}: exit {done.returncode}: {done.stderr}{done.stdout}")
+
 with tempfile.TemporaryDirectory() as work:
     log_path = f"{work}/server.log"
     log = open(log_path, "w")
@@ -86,6 +93,12 @@ with tempfile.TemporaryDirectory() as work:
             time.sleep(0.05)
         if not metrics_url:
             fail("no metrics address in the log: " + open(log_path).read())
+
+        taken = metrics_url.split("//")[1].split("/")[0]
+        done = subprocess.run([MLSREG, "serve", "--listen", "127.0.0.1:0", "--metrics-listen",
+                               taken], capture_output=True, text=True, timeout=60)
+        if done.returncode != 1 or "metrics_listen: cannot listen" not in done.stderr + done.stdout:
+            fail(f"a taken metrics port: exit {done.returncode}: {done.stderr}{done.stdout}")
 
         families, before = scrape(metrics_url)
         for family, kind in [("mlsreg_requests_total", "counter"),

@@ -118,29 +118,35 @@ double RotationDegrees(const Matrix4& m) {
   return std::abs(aa.angle()) * 180.0 / M_PI;
 }
 
-// Poses composed along a breadth-first spanning tree of the edges from the anchor.
-std::vector<Matrix4> ChainedPoses(int n, int anchor, const std::vector<AlignEdge>& edges,
-                                  const Matrix4& anchor_pose) {
+// Poses composed along a breadth-first spanning tree from the anchor, through trusted edges
+// wherever they reach.
+std::vector<Matrix4> ChainedPoses(int n, int anchor, const std::vector<PoseGraphEdge>& edges) {
   std::vector<Matrix4> poses(n, Matrix4::Identity());
   std::vector<bool> seen(n, false);
-  poses[anchor] = anchor_pose;
   seen[anchor] = true;
-  std::queue<int> frontier;
-  frontier.push(anchor);
-  while (!frontier.empty()) {
-    const int at = frontier.front();
-    frontier.pop();
-    for (const AlignEdge& e : edges) {
-      if (e.from == at && !seen[e.to]) {
-        poses[e.to] = poses[at] * e.relative;
-      } else if (e.to == at && !seen[e.from]) {
-        poses[e.from] = poses[at] * e.relative.inverse();
-      } else {
-        continue;
+  for (const bool trusted_only : {true, false}) {
+    std::queue<int> frontier;
+    for (int i = 0; i < n; ++i) {
+      if (seen[i]) frontier.push(i);
+    }
+    while (!frontier.empty()) {
+      const int at = frontier.front();
+      frontier.pop();
+      for (const PoseGraphEdge& e : edges) {
+        if (trusted_only && !e.trusted) continue;
+        int next;
+        if (e.from == at && !seen[e.to]) {
+          next = e.to;
+          poses[next] = poses[at] * e.measurement;
+        } else if (e.to == at && !seen[e.from]) {
+          next = e.from;
+          poses[next] = poses[at] * e.measurement.inverse();
+        } else {
+          continue;
+        }
+        seen[next] = true;
+        frontier.push(next);
       }
-      const int next = e.from == at ? e.to : e.from;
-      seen[next] = true;
-      frontier.push(next);
     }
   }
   return poses;
@@ -329,15 +335,7 @@ absl::StatusOr<AlignResult> AlignScans(const std::vector<PointCloud>& scans,
     graph.push_back({e.from, e.to, e.relative,
                      e.information * (e.correspondences / mean_correspondences), trusted});
   }
-  {
-    std::vector<AlignEdge> trusted_first;
-    for (int pass = 0; pass < 2; ++pass) {
-      for (std::size_t e = 0; e < graph.size(); ++e) {
-        if (graph[e].trusted == (pass == 0)) trusted_first.push_back(result.edges[e]);
-      }
-    }
-    result.chained_poses = ChainedPoses(n, options.anchor, trusted_first, Matrix4::Identity());
-  }
+  result.chained_poses = ChainedPoses(n, options.anchor, graph);
   PoseGraphOptions graph_options = options.graph;
   graph_options.anchor = options.anchor;
   auto solved = OptimisePoseGraph(result.chained_poses, graph, graph_options);
