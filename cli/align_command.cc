@@ -10,6 +10,7 @@
 
 #include "absl/strings/str_format.h"
 #include "cli/commands.h"
+#include "cli/connection_flags.h"
 #include "cli/exit_codes.h"
 #include "cli/registration_flags.h"
 #include "mlsreg/core/parallel_for.h"
@@ -28,7 +29,9 @@ struct AlignArgs {
   double overlap_distance_d = AlignOptions().overlap_distance_d;
   int anchor = 0;
   int threads = HardwareThreads();
+  bool cached = false;  // with --server: --scans are ids of targets on the server
   RegistrationFlags flags{Method::kMlsSicp};
+  ConnectionFlags connection;
 };
 
 int Fail(const absl::Status& status) {
@@ -52,8 +55,16 @@ int RunAlign(const AlignArgs& args) {
   if (!edge_options.ok()) return Fail(edge_options.status());
   auto policy = ParseEnum<PairPolicy>(PairPolicyNames(), args.pairs, "--pairs");
   if (!policy.ok()) return Fail(policy.status());
+  const bool remote = args.connection.has_server();
+  if (args.cached && !remote) {
+    return Fail(absl::InvalidArgumentError("--cached names targets on a server: give --server"));
+  }
+  if (args.cached && (!args.merged.empty() || !args.gt.empty())) {
+    return Fail(absl::InvalidArgumentError(
+        "--merged and --gt need the scans' clouds: give files, not --cached ids"));
+  }
   std::vector<PointCloud> scans;
-  for (const std::string& path : args.scans) {
+  for (const std::string& path : args.cached ? std::vector<std::string>{} : args.scans) {
     auto cloud = ReadPointCloud(path);
     if (!cloud.ok()) return Fail(cloud.status());
     scans.push_back(*std::move(cloud));
@@ -76,11 +87,16 @@ int RunAlign(const AlignArgs& args) {
     if (!poses.ok()) return Fail(poses.status());
     truth = *std::move(poses);
   }
-  std::printf("align: %zu scans, pairs %s, edges by %s, %d threads\n", scans.size(),
-              args.pairs.c_str(), std::string(MethodName(options.edge.method)).c_str(),
-              options.threads);
-  AlignCallbacks callbacks;
-  callbacks.on_edge = [&](const AlignEdge& e, int done, int total) {
+  if (remote) {
+    std::printf("align: %zu scans on %s, pairs %s, edges by %s\n", args.scans.size(),
+                args.connection.options().address.c_str(), args.pairs.c_str(),
+                std::string(MethodName(options.edge.method)).c_str());
+  } else {
+    std::printf("align: %zu scans, pairs %s, edges by %s, %d threads\n", scans.size(),
+                args.pairs.c_str(), std::string(MethodName(options.edge.method)).c_str(),
+                options.threads);
+  }
+  const auto print_edge = [&](const AlignEdge& e, int done, int total) {
     std::printf(
         "[edge %d/%d] %s <- %s: %s after %d iterations, rmse %.3f d, overlap %.1f %%\n", done,
         total, Name(args.scans[e.from]).c_str(), Name(args.scans[e.to]).c_str(),
@@ -88,7 +104,29 @@ int RunAlign(const AlignArgs& args) {
         e.registration.trace.empty() ? 0.0 : e.registration.trace.back().rmse_d, 100.0 * e.overlap);
     std::fflush(stdout);
   };
-  auto result = AlignScans(scans, options, callbacks);
+  absl::StatusOr<AlignResult> result;
+  if (remote) {
+    auto client = args.connection.Connect();
+    if (!client.ok()) return Fail(client.status());
+    std::vector<client::RemoteScan> remote_scans;
+    for (std::size_t i = 0; i < args.scans.size(); ++i) {
+      client::RemoteScan scan;
+      if (args.cached) {
+        scan.target_id = args.scans[i];
+      } else {
+        scan.cloud = std::make_shared<const PointCloud>(scans[i]);
+      }
+      remote_scans.push_back(std::move(scan));
+    }
+    auto aligned = (*client)->AlignScans(remote_scans, options, print_edge);
+    if (!aligned.ok()) return Fail(aligned.status());
+    std::printf("request %s, queued %.3f s\n", aligned->request_id.c_str(), aligned->queue_seconds);
+    result = std::move(aligned->result);
+  } else {
+    AlignCallbacks callbacks;
+    callbacks.on_edge = print_edge;
+    result = AlignScans(scans, options, callbacks);
+  }
   if (!result.ok()) return Fail(result.status());
 
   std::printf("\nedges (disagreement with the optimised poses, units of d = %.6g):\n",
@@ -182,7 +220,9 @@ CommandRunner AddAlignCommand(CLI::App& app) {
   auto args = std::make_shared<AlignArgs>();
   CLI::App* cmd = app.add_subcommand(
       "align", "align many scans into one frame: pairwise registrations and a pose graph");
-  cmd->add_option("--scans", args->scans, "the scans (PLY, PCD, XYZ/CSV, NPY), in order")
+  cmd->add_option("--scans", args->scans,
+                  "the scans (PLY, PCD, XYZ/CSV, NPY), in order; with --server --cached, "
+                  "target ids")
       ->required()
       ->expected(2, -1);
   cmd->add_option("--poses", args->poses,
@@ -206,8 +246,14 @@ CommandRunner AddAlignCommand(CLI::App& app) {
   cmd->add_option("--out", args->out, "write the poses: .conf (Stanford) or rows (any other name)");
   cmd->add_option("--merged", args->merged, "write every scan in the anchor's frame as one cloud");
   cmd->add_option("--json", args->json, "write poses, edges and errors as JSON");
-  cmd->add_option("--threads", args->threads, "edges registered at once")->capture_default_str();
+  cmd->add_option("--threads", args->threads,
+                  "edges registered at once (with --server the server decides)")
+      ->capture_default_str();
+  cmd->add_flag("--cached", args->cached,
+                "with --server: the --scans are ids of targets cached on the server (else the "
+                "files are uploaded with the call)");
   args->flags.AddTo(*cmd);
+  args->connection.AddTo(*cmd, /*server_required=*/false);
   return [args] { return RunAlign(*args); };
 }
 

@@ -8,36 +8,13 @@ RegistrationJob::RegistrationJob(RegistrationInput input, TargetCache* cache,
                                  const std::atomic<bool>* server_stop)
     : input_(std::move(input)),
       cache_(cache),
-      server_stop_(server_stop),
-      admitted_(std::chrono::steady_clock::now()) {}
-
-bool RegistrationJob::ShouldStop() {
-  StopCause cause = StopCause::kNone;
-  if (cancelled_.load()) {
-    cause = StopCause::kClientCancelled;
-  } else if (server_stop_->load()) {
-    cause = StopCause::kShutdown;
-  } else if (std::chrono::system_clock::now() >= input_.deadline) {
-    cause = StopCause::kDeadline;
-  }
-  if (cause == StopCause::kNone) return false;
-  stop_cause_.store(cause);
-  return true;
-}
+      admitted_(std::chrono::steady_clock::now()),
+      stop_(server_stop, input_.deadline) {}
 
 absl::Status RegistrationJob::StoppedStatus(int iterations) const {
-  const std::string when = iterations == 0 ? std::string("before its first iteration")
-                                           : absl::StrCat("after ", iterations, " iterations");
-  switch (stop_cause()) {
-    case StopCause::kShutdown:
-      return absl::UnavailableError(absl::StrCat("server shutting down: registration stopped ",
-                                                 when, "; retry on another server"));
-    case StopCause::kDeadline:
-      return absl::DeadlineExceededError(
-          absl::StrCat("deadline exceeded: registration stopped ", when));
-    default:
-      return absl::CancelledError(absl::StrCat("registration cancelled ", when));
-  }
+  return stop_.Status("registration", iterations == 0
+                                          ? std::string("before its first iteration")
+                                          : absl::StrCat("after ", iterations, " iterations"));
 }
 
 void RegistrationJob::SetListener(std::function<void()> on_update) {
@@ -77,14 +54,14 @@ void RegistrationJob::Finish(absl::StatusOr<RegistrationOutcome> outcome) {
 void RegistrationJob::Run() {
   const double queue_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - admitted_).count();
-  if (ShouldStop()) {  // cancelled, timed out or shut down while queued: do not start
+  if (stop_.ShouldStop()) {  // cancelled, timed out or shut down while queued: do not start
     Finish(StoppedStatus(0));
     return;
   }
   // Held until Run returns: the target cannot be evicted under a running registration.
   std::shared_ptr<const Target> target = std::move(input_.target);
   if (!target) {
-    auto acquired = cache_->Acquire(input_.target_id, [this] { return ShouldStop(); });
+    auto acquired = cache_->Acquire(input_.target_id, [this] { return stop_.ShouldStop(); });
     if (!acquired.ok()) {
       Finish(acquired.status());
       return;
@@ -95,7 +72,7 @@ void RegistrationJob::Run() {
 
   RegistrationCallbacks callbacks;
   callbacks.on_iteration = [this](const IterationReport& report) { Publish(report); };
-  callbacks.should_stop = [this] { return ShouldStop(); };
+  callbacks.should_stop = [this] { return stop_.ShouldStop(); };
   auto result = mlsreg::Register(*target, input_.source, input_.initial, input_.options, callbacks,
                                  ExecutionOptions{input_.threads});
   if (!result.ok()) {

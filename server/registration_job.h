@@ -18,6 +18,7 @@
 #include "absl/status/statusor.h"
 #include "mlsreg/evaluation/metrics.h"
 #include "mlsreg/registration/registration.h"
+#include "server/job_stop.h"
 #include "server/target_cache.h"
 
 namespace mlsreg::server {
@@ -43,9 +44,6 @@ struct RegistrationOutcome {
   double queue_seconds = 0.0;                   // admitted -> a worker started it
 };
 
-// Why a registration ended with Termination::kCancelled.
-enum class StopCause { kNone, kClientCancelled, kDeadline, kShutdown };
-
 class RegistrationJob {
  public:
   // `server_stop` is set when the server's drain time is up; it must outlive the job.
@@ -56,7 +54,7 @@ class RegistrationJob {
   void Run();
 
   // The client went away: the job stops at its next iteration, or never starts.
-  void Cancel() { cancelled_.store(true); }
+  void Cancel() { stop_.Cancel(); }
 
   // Called (on the worker, without the job's lock) after every new report and at the end.
   void SetListener(std::function<void()> on_update);
@@ -73,24 +71,20 @@ class RegistrationJob {
 
   // Valid once an Update said done.
   const absl::StatusOr<RegistrationOutcome>& outcome() const { return outcome_; }
-  StopCause stop_cause() const { return stop_cause_.load(); }
-  // The status a stopped registration ends with, by cause: a shutdown is UNAVAILABLE (the
-  // client may retry elsewhere), a deadline DEADLINE_EXCEEDED, a client's cancel CANCELLED.
+  StopCause stop_cause() const { return stop_.cause(); }
+  // The status a stopped registration ends with, by cause (JobStop::Status).
   absl::Status StoppedStatus(int iterations) const;
   const std::string& target_id() const { return input_.target_id; }
 
  private:
-  bool ShouldStop();
   void Publish(const IterationReport& report);
   void Finish(absl::StatusOr<RegistrationOutcome> outcome);
   void Notify();
 
   RegistrationInput input_;
   TargetCache* const cache_;
-  const std::atomic<bool>* const server_stop_;
   const std::chrono::steady_clock::time_point admitted_;
-  std::atomic<bool> cancelled_{false};
-  std::atomic<StopCause> stop_cause_{StopCause::kNone};
+  JobStop stop_;
 
   std::mutex mutex_;
   std::condition_variable changed_;

@@ -14,6 +14,7 @@
 #include "grpcpp/grpcpp.h"
 #include "mlsreg/v1/mlsreg.grpc.pb.h"
 #include "mlsreg/wire/convert.h"
+#include "server/align_scans_call.h"
 #include "server/ids.h"
 #include "server/registration_job.h"
 #include "server/services.h"
@@ -295,6 +296,10 @@ class RegistrationServiceImpl final : public v1::RegistrationService::CallbackSe
 
   RegisterReactor* Register(grpc::CallbackServerContext* ctx) override {
     return StreamingCall<RegisterReactor>::Launch<RegisterCall>(c_, ctx);
+  }
+
+  AlignScansReactor* AlignScans(grpc::CallbackServerContext* ctx) override {
+    return StartAlignScans(c_, ctx);
   }
 
  private:

@@ -15,7 +15,8 @@ namespace mlsreg::server {
 
 // CreateTarget, GetTarget, ListTargets, DeleteTarget.
 std::unique_ptr<grpc::Service> NewTargetService(ServiceContext& context);
-// Register (bidi stream: header + source chunks in; Accepted, Progress..., Result out).
+// Register (bidi stream: header + source chunks in; Accepted, Progress..., Result out) and
+// AlignScans (header + uploaded scans' chunks in; Accepted, AlignProgress per edge, result out).
 std::unique_ptr<grpc::Service> NewRegistrationService(ServiceContext& context);
 // GetStats.
 std::unique_ptr<grpc::Service> NewStatsService(ServiceContext& context);

@@ -18,16 +18,6 @@ namespace {
 constexpr int kDefaultPageSize = 100;
 constexpr int kMaxPageSize = 1000;
 
-// Target::EstimateBytes from the header, checked before any data is read, so a client learns
-// that a target can never fit without sending it.
-std::uint64_t MinTargetBytes(const v1::CloudHeader& cloud) {
-  std::optional<PinholeIntrinsics> intrinsics;
-  if (cloud.has_intrinsics()) {
-    intrinsics = PinholeIntrinsics{cloud.intrinsics().width(), cloud.intrinsics().height()};
-  }
-  return Target::EstimateBytes(cloud.point_count(), cloud.has_normals(), intrinsics);
-}
-
 // "sha256:" followed by 64 lower-case hex digits, the form CloudDigest writes.
 bool IsDigest(std::string_view text) {
   constexpr std::string_view kPrefix = "sha256:";
@@ -119,8 +109,8 @@ class CreateTargetCall final : public StreamingCall<CreateTargetReactor> {
     }
     auto expected = wire::CheckCloudHeader(header_.cloud(), c_.config.max_points, "header.cloud");
     if (!expected.ok()) return expected.status();
-    auto existing = c_.cache.CheckCanCreate(header_.target_id(), MinTargetBytes(header_.cloud()),
-                                            header_.content_digest());
+    auto existing = c_.cache.CheckCanCreate(
+        header_.target_id(), wire::EstimatedTargetBytes(header_.cloud()), header_.content_digest());
     if (!existing.ok()) return existing.status();
     if (existing->has_value()) {  // the same content is there: nothing to send
       scope_.add_detail("unchanged=true");

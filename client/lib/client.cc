@@ -97,6 +97,43 @@ absl::StatusOr<std::vector<std::string>> ResolveDns(const std::string& target) {
   return addresses;
 }
 
+// Cancels a call's context when `*cancel` turns true, until destroyed: TryCancel is the only way
+// to interrupt a blocking Read. Does nothing for a null flag.
+class CancelWatcher {
+ public:
+  CancelWatcher(grpc::ClientContext& context, const std::atomic<bool>* cancel) {
+    if (!cancel) return;
+    thread_ = std::thread([this, &context, cancel] {
+      while (!done_.load()) {
+        if (cancel->load()) {
+          context.TryCancel();
+          return;
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      }
+    });
+  }
+  ~CancelWatcher() {
+    done_ = true;
+    if (thread_.joinable()) thread_.join();
+  }
+
+ private:
+  std::atomic<bool> done_{false};
+  std::thread thread_;
+};
+
+// The status of a finished streaming call. A CANCELLED this caller did not ask for means the
+// server dropped the call (a replica that shuts down cancels calls it has not started): such a
+// call changes nothing on the server, so it is UNAVAILABLE, retried on the next replica.
+absl::Status StreamStatus(const grpc::Status& status, const std::atomic<bool>* cancel) {
+  if (status.error_code() == grpc::StatusCode::CANCELLED && !(cancel && cancel->load())) {
+    return absl::UnavailableError(
+        absl::StrCat("the server cancelled the call: ", status.error_message()));
+  }
+  return wire::ToAbslStatus(status);
+}
+
 }  // namespace
 
 // One server: its channel and stubs, and until when it is considered down.
@@ -440,20 +477,7 @@ absl::StatusOr<RemoteRegistrationResult> Client::Register(
           grpc::ClientContext& context) -> absl::StatusOr<RemoteRegistrationResult> {
         RemoteRegistrationResult out;
         auto stream = replica.registration->Register(&context);
-        // Cancellation watcher: TryCancel is the only way to interrupt a blocking Read.
-        std::atomic<bool> done{false};
-        std::thread watcher;
-        if (cancel) {
-          watcher = std::thread([&] {
-            while (!done.load()) {
-              if (cancel->load()) {
-                context.TryCancel();
-                return;
-              }
-              std::this_thread::sleep_for(std::chrono::milliseconds(20));
-            }
-          });
-        }
+        const CancelWatcher watcher(context, cancel);
         if (stream->Write(header_message) && !inline_source) {
           v1::RegisterRequest chunk_message;
           wire::WriteChunks(payload, options_.chunk_bytes, [&](const v1::CloudChunk& chunk) {
@@ -482,22 +506,81 @@ absl::StatusOr<RemoteRegistrationResult> Client::Register(
             have_result = true;
           }
         }
-        const grpc::Status status = stream->Finish();
-        done = true;
-        if (watcher.joinable()) watcher.join();
-        if (status.error_code() == grpc::StatusCode::CANCELLED && !(cancel && cancel->load())) {
-          // This caller did not cancel: the server dropped the call (a replica that shuts down
-          // cancels calls it has not started yet). A registration changes nothing on the
-          // server, so it is retried like UNAVAILABLE, on the next replica.
-          return absl::UnavailableError(
-              absl::StrCat("the server cancelled the call: ", status.error_message()));
+        if (absl::Status status = StreamStatus(stream->Finish(), cancel); !status.ok()) {
+          return status;
         }
-        if (!status.ok()) return wire::ToAbslStatus(status);
         if (!have_result)
           return absl::DataLossError("the server ended the stream without a result");
         return out;
       },
       &attempts, reupload);
+  if (result.ok()) result->attempts = attempts;
+  return result;
+}
+
+absl::StatusOr<RemoteAlignResult> Client::AlignScans(
+    const std::vector<RemoteScan>& scans, const AlignOptions& options,
+    const std::function<void(const AlignEdge&, int, int)>& on_edge,
+    const std::atomic<bool>* cancel) {
+  v1::AlignScansRequest header_message;
+  v1::AlignScansHeader* header = header_message.mutable_header();
+  wire::AlignOptionsToProto(options, header);
+  std::string payload, route;
+  for (std::size_t i = 0; i < scans.size(); ++i) {
+    v1::AlignScan* scan = header->add_scans();
+    if (!scans[i].target_id.empty()) {
+      scan->set_target_id(scans[i].target_id);
+      if (route.empty()) route = scans[i].target_id;
+    } else if (scans[i].cloud) {
+      std::string data;
+      wire::EncodeCloud(*scans[i].cloud,
+                        options_.float32 ? v1::SCALAR_TYPE_FLOAT32 : v1::SCALAR_TYPE_FLOAT64,
+                        scan->mutable_cloud(), &data);
+      payload += data;
+    } else {
+      return absl::InvalidArgumentError(
+          absl::StrCat("scans[", i, "]: give a target id or a cloud"));
+    }
+  }
+  int attempts = 1;
+  auto result = impl_->Call<RemoteAlignResult>(
+      route, [&]() -> Replica& { return impl_->Choose(route); },
+      [&](Replica& replica, grpc::ClientContext& context) -> absl::StatusOr<RemoteAlignResult> {
+        RemoteAlignResult out;
+        auto stream = replica.registration->AlignScans(&context);
+        const CancelWatcher watcher(context, cancel);
+        if (stream->Write(header_message) && !payload.empty()) {
+          v1::AlignScansRequest chunk_message;
+          wire::WriteChunks(payload, options_.chunk_bytes, [&](const v1::CloudChunk& chunk) {
+            *chunk_message.mutable_scan_chunk() = chunk;
+            return stream->Write(chunk_message);
+          });
+        }
+        stream->WritesDone();
+        v1::AlignScansResponse response;
+        bool have_result = false;
+        while (stream->Read(&response)) {
+          if (response.has_accepted()) {
+            out.request_id = response.accepted().request_id();
+          } else if (response.has_progress()) {
+            if (on_edge) {
+              on_edge(wire::FromProto(response.progress().edge()), response.progress().edges_done(),
+                      response.progress().edges_total());
+            }
+          } else if (response.has_result()) {
+            out.result = wire::FromProto(response.result());
+            out.queue_seconds = response.result().queue_seconds();
+            have_result = true;
+          }
+        }
+        if (absl::Status status = StreamStatus(stream->Finish(), cancel); !status.ok()) {
+          return status;
+        }
+        if (!have_result)
+          return absl::DataLossError("the server ended the stream without a result");
+        return out;
+      },
+      &attempts);
   if (result.ok()) result->attempts = attempts;
   return result;
 }

@@ -7,6 +7,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "mlsreg/geometry/depth_grid.h"
+#include "mlsreg/geometry/target.h"
 
 namespace mlsreg::wire {
 
@@ -15,6 +16,14 @@ std::size_t RecordBytes(const v1::CloudHeader& header) {
   if (header.scalar_type() == v1::SCALAR_TYPE_FLOAT32) scalar = 4;
   if (header.scalar_type() == v1::SCALAR_TYPE_FLOAT64) scalar = 8;
   return scalar * (header.has_normals() ? 6 : 3);
+}
+
+std::uint64_t EstimatedTargetBytes(const v1::CloudHeader& cloud) {
+  std::optional<PinholeIntrinsics> intrinsics;
+  if (cloud.has_intrinsics()) {
+    intrinsics = PinholeIntrinsics{cloud.intrinsics().width(), cloud.intrinsics().height()};
+  }
+  return Target::EstimateBytes(cloud.point_count(), cloud.has_normals(), intrinsics);
 }
 
 absl::StatusOr<std::uint64_t> CheckCloudHeader(const v1::CloudHeader& header,

@@ -28,14 +28,6 @@ VerificationScore FromProto(const v1::VerificationScore& p) {
   return {p.samples(), p.inliers(), p.inlier_fraction(), p.rmse_d(), p.inlier_distance_d()};
 }
 
-Matrix4 MatrixFromProto(const v1::Transform& t) {
-  Matrix4 m = Matrix4::Identity();
-  if (t.row_major_size() == 16) {
-    for (int i = 0; i < 16; ++i) m(i / 4, i % 4) = t.row_major(i);
-  }
-  return m;
-}
-
 void ToProto(const AutoReport& r, v1::AutoReport* out) {
   for (const AutoCandidate& c : r.candidates) {
     v1::AutoCandidate* p = out->add_candidates();
@@ -65,8 +57,8 @@ AutoReport FromProto(const v1::AutoReport& p) {
     AutoCandidate a;
     a.origin = EnumFromWire(CandidateOriginNames(), c.origin(), CandidateOrigin::kStart, "origin")
                    .value_or(CandidateOrigin::kStart);
-    a.start = MatrixFromProto(c.start());
-    a.refined = MatrixFromProto(c.refined());
+    a.start = ReportedFromProto(c.start());
+    a.refined = ReportedFromProto(c.refined());
     a.feature_inliers = c.feature_inliers();
     a.iterations = c.iterations();
     a.score = FromProto(c.score());
@@ -104,9 +96,7 @@ void ToProto(const IterationReport& r, v1::Progress* out) {
 IterationReport FromProto(const v1::Progress& p) {
   IterationReport r;
   r.iteration = p.iteration();
-  if (p.transform().row_major_size() == 16) {
-    for (int i = 0; i < 16; ++i) r.transform(i / 4, i % 4) = p.transform().row_major(i);
-  }
+  r.transform = ReportedFromProto(p.transform());
   r.rmse = p.rmse();
   r.rmse_d = p.rmse_d();
   r.counts.matched = p.counts().matched();
@@ -143,9 +133,7 @@ void ToProto(const RegistrationResult& r, v1::Result* out) {
 
 RegistrationResult FromProto(const v1::Result& p) {
   RegistrationResult r;
-  if (p.transform().row_major_size() == 16) {
-    for (int i = 0; i < 16; ++i) r.transform(i / 4, i % 4) = p.transform().row_major(i);
-  }
+  r.transform = ReportedFromProto(p.transform());
   r.converged = p.converged();
   r.termination = TerminationFromProto(p.termination());
   r.iterations = p.iterations();

@@ -25,4 +25,12 @@ absl::StatusOr<Matrix4> FromProto(const v1::Transform& t, std::string_view field
   return m;
 }
 
+Matrix4 ReportedFromProto(const v1::Transform& t) {
+  Matrix4 m = Matrix4::Identity();
+  if (t.row_major_size() == 16) {
+    for (int i = 0; i < 16; ++i) m(i / 4, i % 4) = t.row_major(i);
+  }
+  return m;
+}
+
 }  // namespace mlsreg::wire

@@ -152,8 +152,31 @@ std::vector<Matrix4> ChainedPoses(int n, int anchor, const std::vector<PoseGraph
   return poses;
 }
 
-absl::Status Validate(const std::vector<PointCloud>& scans, const AlignOptions& options) {
-  const int n = static_cast<int>(scans.size());
+// Runs body(k) for k in [0, count) on `threads` threads, stopping early when it returns an error.
+absl::Status ForEach(int count, int threads, const std::function<absl::Status(int)>& body) {
+  std::atomic<int> next{0};
+  std::mutex mutex;
+  absl::Status first;
+  const auto worker = [&] {
+    for (int k = next++; k < count; k = next++) {
+      absl::Status s = body(k);
+      if (!s.ok()) {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (first.ok()) first = s;
+        next = count;
+      }
+    }
+  };
+  std::vector<std::thread> helpers;
+  for (int t = 1; t < std::min(threads, count); ++t) helpers.emplace_back(worker);
+  worker();
+  for (std::thread& t : helpers) t.join();
+  return first;
+}
+
+}  // namespace
+
+absl::Status ValidateAlignOptions(int n, const AlignOptions& options) {
   if (n < 2) return absl::InvalidArgumentError(absl::StrCat("scans: need at least 2, got ", n));
   if (!options.initial_poses.empty() && static_cast<int>(options.initial_poses.size()) != n) {
     return absl::InvalidArgumentError(
@@ -180,30 +203,6 @@ absl::Status Validate(const std::vector<PointCloud>& scans, const AlignOptions& 
   return ValidateOptions(options.edge);
 }
 
-// Runs body(k) for k in [0, count) on `threads` threads, stopping early when it returns an error.
-absl::Status ForEach(int count, int threads, const std::function<absl::Status(int)>& body) {
-  std::atomic<int> next{0};
-  std::mutex mutex;
-  absl::Status first;
-  const auto worker = [&] {
-    for (int k = next++; k < count; k = next++) {
-      absl::Status s = body(k);
-      if (!s.ok()) {
-        std::lock_guard<std::mutex> lock(mutex);
-        if (first.ok()) first = s;
-        next = count;
-      }
-    }
-  };
-  std::vector<std::thread> helpers;
-  for (int t = 1; t < std::min(threads, count); ++t) helpers.emplace_back(worker);
-  worker();
-  for (std::thread& t : helpers) t.join();
-  return first;
-}
-
-}  // namespace
-
 std::string_view PairPolicyName(PairPolicy policy) { return NameOf(PairPolicyNames(), policy); }
 
 const EnumNames& PairPolicyNames() {
@@ -220,16 +219,10 @@ absl::StatusOr<AlignResult> AlignScans(const std::vector<PointCloud>& scans,
                                        const AlignOptions& options,
                                        const AlignCallbacks& callbacks) {
   const auto start = std::chrono::steady_clock::now();
-  if (absl::Status s = Validate(scans, options); !s.ok()) return s;
   const int n = static_cast<int>(scans.size());
-  const std::vector<Matrix4> initial = options.initial_poses.empty()
-                                           ? std::vector<Matrix4>(n, Matrix4::Identity())
-                                           : options.initial_poses;
-  const auto stopped = [&] { return callbacks.should_stop && callbacks.should_stop(); };
-
-  // 1. Every scan as a target (index, normals, noise, MLS patches, samples), built once.
+  if (absl::Status s = ValidateAlignOptions(n, options); !s.ok()) return s;
+  // Every scan as a target (index, normals, noise, MLS patches, samples), built once.
   std::vector<TargetPtr> targets(n);
-  std::vector<Samples> samples(n);
   if (absl::Status s = ForEach(
           n, options.threads,
           [&](int i) -> absl::Status {
@@ -239,12 +232,34 @@ absl::StatusOr<AlignResult> AlignScans(const std::vector<PointCloud>& scans,
                                   absl::StrCat("scans[", i, "]: ", built.status().message()));
             }
             targets[i] = *std::move(built);
-            samples[i] = SamplesOf(*targets[i]);
             return absl::OkStatus();
           });
       !s.ok()) {
     return s;
   }
+  auto result = AlignTargets(targets, options, callbacks);
+  if (result.ok()) {
+    result->seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+  return result;
+}
+
+absl::StatusOr<AlignResult> AlignTargets(const std::vector<std::shared_ptr<const Target>>& targets,
+                                         const AlignOptions& options,
+                                         const AlignCallbacks& callbacks) {
+  const auto start = std::chrono::steady_clock::now();
+  const int n = static_cast<int>(targets.size());
+  if (absl::Status s = ValidateAlignOptions(n, options); !s.ok()) return s;
+  for (int i = 0; i < n; ++i) {
+    if (!targets[i]) return absl::InvalidArgumentError(absl::StrCat("scans[", i, "]: no target"));
+  }
+  const std::vector<Matrix4> initial = options.initial_poses.empty()
+                                           ? std::vector<Matrix4>(n, Matrix4::Identity())
+                                           : options.initial_poses;
+  const auto stopped = [&] { return callbacks.should_stop && callbacks.should_stop(); };
+  std::vector<Samples> samples(n);
+  for (int i = 0; i < n; ++i) samples[i] = SamplesOf(*targets[i]);
   AlignResult result;
   for (const TargetPtr& t : targets) result.sampling_distance += t->sampling_distance() / n;
   const double d = result.sampling_distance;
@@ -290,8 +305,9 @@ absl::StatusOr<AlignResult> AlignScans(const std::vector<PointCloud>& scans,
             AlignEdge& edge = result.edges[k];
             edge.from = i;
             edge.to = j;
-            auto registered = Register(*targets[i], scans[j], initial[i].inverse() * initial[j],
-                                       options.edge, edge_callbacks);
+            auto registered =
+                Register(*targets[i], targets[j]->cloud(), initial[i].inverse() * initial[j],
+                         options.edge, edge_callbacks);
             if (!registered.ok()) {
               return absl::Status(
                   registered.status().code(),
@@ -352,13 +368,13 @@ absl::StatusOr<AlignResult> AlignScans(const std::vector<PointCloud>& scans,
   // 5. What the graph changed: drift of the chain, and the loop's closure.
   for (int i = 0; i < n; ++i) {
     result.chain_deviation_d.push_back(
-        RmsBetween(scans[i].points, result.chained_poses[i], result.poses[i]) / d);
+        RmsBetween(targets[i]->points(), result.chained_poses[i], result.poses[i]) / d);
   }
   if (options.pairs == PairPolicy::kLoop && n > 2) {
     Matrix4 loop = Matrix4::Identity();
     for (const AlignEdge& e : result.edges) loop = loop * e.relative;  // (0,1) ... (n-1,0)
     result.loop_closure_rotation_deg = RotationDegrees(loop);
-    result.loop_closure_error_d = RmsBetween(scans[0].points, loop, Matrix4::Identity()) / d;
+    result.loop_closure_error_d = RmsBetween(targets[0]->points(), loop, Matrix4::Identity()) / d;
   }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;

@@ -21,6 +21,7 @@
 #include "absl/status/statusor.h"
 #include "mlsreg/evaluation/metrics.h"
 #include "mlsreg/geometry/target_info.h"
+#include "mlsreg/multiview/align_scans.h"
 #include "mlsreg/registration/registration.h"
 
 namespace mlsreg::client {
@@ -46,6 +47,19 @@ struct RemoteRegistrationResult {
   std::string request_id;
   RegistrationResult result;  // trace holds the progress messages received
   std::optional<PoseError> ground_truth_error;
+  double queue_seconds = 0.0;
+  int attempts = 1;
+};
+
+// One scan of a remote AlignScans: a target already on the server, or a cloud sent with the call.
+struct RemoteScan {
+  std::string target_id;                    // set: a target on the server
+  std::shared_ptr<const PointCloud> cloud;  // else: uploaded in the call (not kept there)
+};
+
+struct RemoteAlignResult {
+  std::string request_id;
+  AlignResult result;  // an edge's trace holds only its last iteration
   double queue_seconds = 0.0;
   int attempts = 1;
 };
@@ -80,6 +94,15 @@ class Client {
       const std::string& target_id, const PointCloud& source, const Matrix4& initial,
       const RegistrationOptions& options, const std::optional<Matrix4>& ground_truth = {},
       const std::function<void(const IterationReport&)>& on_progress = {},
+      const std::atomic<bool>* cancel = nullptr);
+
+  // Aligns many scans into one frame on one server: the replica of the first cached scan's
+  // target id (every cached scan must be on it), or any replica when all are uploaded.
+  // `on_edge` (may be empty) sees every edge as it finishes, with the count done and the total.
+  // Set `*cancel` (may be null) to true from another thread to cancel the call.
+  absl::StatusOr<RemoteAlignResult> AlignScans(
+      const std::vector<RemoteScan>& scans, const AlignOptions& options,
+      const std::function<void(const AlignEdge&, int done, int total)>& on_edge = {},
       const std::atomic<bool>* cancel = nullptr);
 
   // The overall health of replica `replica` ("" service), via grpc.health.v1.

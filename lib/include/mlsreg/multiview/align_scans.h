@@ -4,6 +4,7 @@
 #pragma once
 
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string_view>
 #include <vector>
@@ -12,6 +13,7 @@
 #include "mlsreg/core/enum_names.h"
 #include "mlsreg/core/point_cloud.h"
 #include "mlsreg/core/stop_check.h"
+#include "mlsreg/geometry/target.h"
 #include "mlsreg/multiview/pose_graph.h"
 #include "mlsreg/registration/options.h"
 #include "mlsreg/registration/result.h"
@@ -84,12 +86,22 @@ struct AlignCallbacks {
   StopCheck should_stop;
 };
 
+// The checks of AlignScans that need only the scan count (the first four below and the
+// options'), e.g. for a server to refuse a request before its data is sent.
+absl::Status ValidateAlignOptions(int scan_count, const AlignOptions& options);
+
 // InvalidArgument naming the field for: fewer than 2 scans, a scan that cannot be a target, a
 // pose count that is not the scan count, a non-rigid pose, an anchor out of range, a pair graph
 // that does not join every scan. CANCELLED when stopped.
 absl::StatusOr<AlignResult> AlignScans(const std::vector<PointCloud>& scans,
                                        const AlignOptions& options,
                                        const AlignCallbacks& callbacks = {});
+
+// The same over scans already built as targets (e.g. a server's cached ones); each target's
+// cloud is the scan. Targets built with features give the overlaps their oriented samples.
+absl::StatusOr<AlignResult> AlignTargets(const std::vector<std::shared_ptr<const Target>>& targets,
+                                         const AlignOptions& options,
+                                         const AlignCallbacks& callbacks = {});
 
 // Every scan under its pose, one cloud (normals rotated along when all scans have them).
 PointCloud MergeScans(const std::vector<PointCloud>& scans, const std::vector<Matrix4>& poses);

@@ -23,6 +23,9 @@ std::size_t RecordBytes(const v1::CloudHeader& header);
 absl::StatusOr<std::uint64_t> CheckCloudHeader(const v1::CloudHeader& header,
                                                std::uint64_t max_points, std::string_view field);
 
+// What the cloud will cost as a built Target (Target::EstimateBytes), from its header alone.
+std::uint64_t EstimatedTargetBytes(const v1::CloudHeader& header);
+
 // Decodes a complete payload (size must be point_count * RecordBytes). Rejects NaN/Inf
 // coordinates and zero or non-finite normals naming "<field>.points[i]".
 absl::StatusOr<PointCloud> DecodeCloud(const v1::CloudHeader& header, std::string_view payload,

@@ -3,6 +3,7 @@
 // field path (e.g. "source.points[12]: non-finite coordinate").
 #pragma once
 
+#include "mlsreg/wire/align_codec.h"       // AlignScans options, edges, results
 #include "mlsreg/wire/cloud_codec.h"       // clouds, chunks
 #include "mlsreg/wire/enum_codec.h"        // enums through the library's name tables
 #include "mlsreg/wire/options_codec.h"     // method and registration parameters
