@@ -324,6 +324,21 @@ class Client:
         raw = self._client.register(target_id, source, method, init, gt, _adapt(callback), params)
         return _result(raw, method, source)
 
+    def align_scans(self, scans: Sequence, poses=None, pairs: str = "loop",
+                    method: str = "mls-sicp", min_overlap: float = 0.3,
+                    overlap_distance_d: float = 20.0, anchor: int = 0,
+                    callback: Optional[Callable[[dict, int, int], Any]] = None,
+                    **params) -> AlignResult:
+        """mlsreg.align_scans on the server (the AlignScans RPC): each scan is a ``str`` (the id
+        of a target on the server) or a cloud sent with the call. ``callback(edge, done, total)``
+        sees every edge as the server finishes it; returning False cancels (mlsreg.Error, code
+        CANCELLED). The server decides the threads."""
+        raw = self._client.align_scans(list(scans), poses, pairs, method, min_overlap,
+                                       overlap_distance_d, anchor, callback, params)
+        raw.pop("request_id")
+        raw.pop("queue_seconds")
+        return AlignResult(**raw)
+
     def stream(self, target_id: str, source, method: str = "auto", init=None, gt=None,
                **params) -> RegistrationStream:
         """A served registration as an iterator of progress reports::

@@ -5,6 +5,8 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <functional>
+
 #include "absl/strings/str_cat.h"
 #include "mlsreg/client/client.h"
 #include "mlsreg/evaluation/metrics.h"
@@ -174,14 +176,10 @@ py::dict AlignEdgeToPython(const AlignEdge& e) {
                   py::arg("kept") = e.kept);
 }
 
-py::dict AlignScansFromPython(const py::list& scans, py::object poses, const std::string& pairs,
-                              const std::string& method, double min_overlap,
-                              double overlap_distance_d, int anchor, int threads,
-                              py::object callback, const py::dict& params) {
-  std::vector<PointCloud> clouds;
-  for (std::size_t i = 0; i < scans.size(); ++i) {
-    clouds.push_back(CloudFromPython(scans[i], absl::StrCat("scans[", i, "]")));
-  }
+AlignOptions AlignOptionsFromPython(py::object poses, const std::string& pairs,
+                                    const std::string& method, double min_overlap,
+                                    double overlap_distance_d, int anchor, int threads,
+                                    const py::dict& params) {
   AlignOptions options;
   options.edge = OptionsFromPython(method, params);
   options.pairs = ValueOrThrow(ParseEnum<PairPolicy>(PairPolicyNames(), pairs, "pairs"));
@@ -195,19 +193,10 @@ py::dict AlignScansFromPython(const py::list& scans, py::object poses, const std
       options.initial_poses.push_back(TransformFromPython(pose, absl::StrCat("poses[", i++, "]")));
     }
   }
-  CallbackBridge bridge(std::move(callback));
-  AlignCallbacks callbacks;
-  callbacks.should_stop = [&bridge] { return bridge.ShouldStop(); };
-  callbacks.on_edge = [&bridge](const AlignEdge& edge, int done, int total) {
-    bridge.Invoke([&](const py::object& f) { return f(AlignEdgeToPython(edge), done, total); });
-  };
-  absl::StatusOr<AlignResult> result;
-  {
-    py::gil_scoped_release release;
-    result = AlignScans(clouds, options, callbacks);
-  }
-  bridge.RaiseIfFailed();
-  const AlignResult& r = ValueOrThrow(std::move(result));
+  return options;
+}
+
+py::dict AlignResultToPython(const AlignResult& r) {
   py::list out_poses, chained, edges;
   for (const Matrix4& p : r.poses) out_poses.append(Matrix4(p));
   for (const Matrix4& p : r.chained_poses) chained.append(Matrix4(p));
@@ -218,6 +207,36 @@ py::dict AlignScansFromPython(const py::list& scans, py::object poses, const std
                   py::arg("loop_closure_error_d") = r.loop_closure_error_d,
                   py::arg("sampling_distance") = r.sampling_distance,
                   py::arg("graph_iterations") = r.graph_iterations, py::arg("seconds") = r.seconds);
+}
+
+// The callback of an alignment: (edge dict, done, total).
+std::function<void(const AlignEdge&, int, int)> OnEdge(CallbackBridge& bridge) {
+  return [&bridge](const AlignEdge& edge, int done, int total) {
+    bridge.Invoke([&](const py::object& f) { return f(AlignEdgeToPython(edge), done, total); });
+  };
+}
+
+py::dict AlignScansFromPython(const py::list& scans, py::object poses, const std::string& pairs,
+                              const std::string& method, double min_overlap,
+                              double overlap_distance_d, int anchor, int threads,
+                              py::object callback, const py::dict& params) {
+  std::vector<PointCloud> clouds;
+  for (std::size_t i = 0; i < scans.size(); ++i) {
+    clouds.push_back(CloudFromPython(scans[i], absl::StrCat("scans[", i, "]")));
+  }
+  const AlignOptions options = AlignOptionsFromPython(poses, pairs, method, min_overlap,
+                                                      overlap_distance_d, anchor, threads, params);
+  CallbackBridge bridge(std::move(callback));
+  AlignCallbacks callbacks;
+  callbacks.should_stop = [&bridge] { return bridge.ShouldStop(); };
+  callbacks.on_edge = OnEdge(bridge);
+  absl::StatusOr<AlignResult> result;
+  {
+    py::gil_scoped_release release;
+    result = AlignScans(clouds, options, callbacks);
+  }
+  bridge.RaiseIfFailed();
+  return AlignResultToPython(ValueOrThrow(std::move(result)));
 }
 
 void BindMultiview(py::module_& m) {
@@ -318,33 +337,65 @@ void BindClient(py::module_& m) {
            })
       .def("replicas", &Client::replicas)
       .def("replica_for", &Client::ReplicaFor)
-      .def("register", [](Client& c, const std::string& target_id, py::object source,
-                          const std::string& method, py::object init, py::object gt,
-                          py::object callback, const py::dict& params) {
-        const RegistrationOptions options = OptionsFromPython(method, params);
-        const Matrix4 initial = TransformFromPython(init, "init");
-        std::optional<Matrix4> truth;
-        if (!gt.is_none()) truth = TransformFromPython(gt, "gt");
-        const PointCloud cloud = CloudFromPython(source, "source");
-        CallbackBridge bridge(std::move(callback));
-        absl::StatusOr<client::RemoteRegistrationResult> remote;
-        {
-          py::gil_scoped_release release;
-          remote = c.Register(
-              target_id, cloud, initial, options, truth,
-              [&bridge](const IterationReport& r) { bridge.OnIteration(r); }, bridge.stop_flag());
-        }
-        bridge.RaiseIfFailed();
-        client::RemoteRegistrationResult r = ValueOrThrow(std::move(remote));
-        py::dict out = ResultToPython(r.result);
-        out["request_id"] = r.request_id;
-        out["queue_seconds"] = r.queue_seconds;
-        out["attempts"] = r.attempts;
-        out["ground_truth_error"] = r.ground_truth_error
-                                        ? py::object(PoseErrorToPython(*r.ground_truth_error))
-                                        : py::none();
-        return out;
-      });
+      .def("register",
+           [](Client& c, const std::string& target_id, py::object source, const std::string& method,
+              py::object init, py::object gt, py::object callback, const py::dict& params) {
+             const RegistrationOptions options = OptionsFromPython(method, params);
+             const Matrix4 initial = TransformFromPython(init, "init");
+             std::optional<Matrix4> truth;
+             if (!gt.is_none()) truth = TransformFromPython(gt, "gt");
+             const PointCloud cloud = CloudFromPython(source, "source");
+             CallbackBridge bridge(std::move(callback));
+             absl::StatusOr<client::RemoteRegistrationResult> remote;
+             {
+               py::gil_scoped_release release;
+               remote = c.Register(
+                   target_id, cloud, initial, options, truth,
+                   [&bridge](const IterationReport& r) { bridge.OnIteration(r); },
+                   bridge.stop_flag());
+             }
+             bridge.RaiseIfFailed();
+             client::RemoteRegistrationResult r = ValueOrThrow(std::move(remote));
+             py::dict out = ResultToPython(r.result);
+             out["request_id"] = r.request_id;
+             out["queue_seconds"] = r.queue_seconds;
+             out["attempts"] = r.attempts;
+             out["ground_truth_error"] = r.ground_truth_error
+                                             ? py::object(PoseErrorToPython(*r.ground_truth_error))
+                                             : py::none();
+             return out;
+           })
+      .def("align_scans",
+           [](Client& c, const py::list& scans, py::object poses, const std::string& pairs,
+              const std::string& method, double min_overlap, double overlap_distance_d, int anchor,
+              py::object callback, const py::dict& params) {
+             // A str is the id of a target on the server; anything else a cloud sent with the call.
+             std::vector<client::RemoteScan> remote;
+             for (std::size_t i = 0; i < scans.size(); ++i) {
+               client::RemoteScan scan;
+               if (py::isinstance<py::str>(scans[i])) {
+                 scan.target_id = scans[i].cast<std::string>();
+               } else {
+                 scan.cloud = std::make_shared<const PointCloud>(
+                     CloudFromPython(scans[i], absl::StrCat("scans[", i, "]")));
+               }
+               remote.push_back(std::move(scan));
+             }
+             const AlignOptions options = AlignOptionsFromPython(
+                 poses, pairs, method, min_overlap, overlap_distance_d, anchor, 1, params);
+             CallbackBridge bridge(std::move(callback));
+             absl::StatusOr<client::RemoteAlignResult> aligned;
+             {
+               py::gil_scoped_release release;
+               aligned = c.AlignScans(remote, options, OnEdge(bridge), bridge.stop_flag());
+             }
+             bridge.RaiseIfFailed();
+             client::RemoteAlignResult r = ValueOrThrow(std::move(aligned));
+             py::dict out = AlignResultToPython(r.result);
+             out["request_id"] = r.request_id;
+             out["queue_seconds"] = r.queue_seconds;
+             return out;
+           });
 }
 
 }  // namespace

@@ -65,3 +65,29 @@ def test_bad_input_raises_value_error(scans, truth):
         mlsreg.align_scans(scans, max_iterations=0)
     with pytest.raises(ValueError, match="no 'bmesh nope.ply' line"):
         mlsreg.read_poses(str(BUNNY / "bun.conf"), ["nope.ply"])
+
+
+def test_a_served_alignment_equals_the_local_one(server, scans, truth):
+    """The AlignScans RPC: one scan cached on the server (by id), two sent with the call."""
+    client = mlsreg.Client(server)
+    client.upload_target("bun045.ply", scans[1])
+    start = [p.copy() for p in truth]
+    for p in start[1:]:
+        p[:3, 3] += 0.002
+    local = mlsreg.align_scans(scans, poses=start)
+    edges = []
+    served = client.align_scans([scans[0], "bun045.ply", scans[2]], poses=start,
+                                callback=lambda e, done, total: edges.append((e["from"], e["to"])))
+    assert sorted(edges) == [(0, 1), (1, 2), (2, 0)]
+    for a, b in zip(local.poses, served.poses):
+        assert np.abs(a - b).max() < 1e-6
+    assert [e["kept"] for e in served.edges] == [e["kept"] for e in local.edges]
+    with pytest.raises(mlsreg.Error) as raised:
+        # Cancelled after the first of three edges (each takes a few hundred ms on the server).
+        client.align_scans([scans[0], "bun045.ply", scans[2]], poses=truth,
+                           callback=lambda e, done, total: False)
+    assert raised.value.code == "CANCELLED"
+    with pytest.raises(LookupError, match=r"header.scans\[1\].target_id: target 'nope' not found"):
+        client.align_scans([scans[0], "nope"])
+    with pytest.raises(ValueError, match="initial_poses: 2 poses for 3 scans"):
+        client.align_scans([scans[0], "bun045.ply", scans[2]], poses=truth[:2])
