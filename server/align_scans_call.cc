@@ -173,9 +173,6 @@ class AlignScansCall final : public StreamingCall<AlignScansReactor> {
     if (!request_.has_scan_chunk()) {
       return absl::InvalidArgumentError("scan_chunk: expected a chunk, got another header");
     }
-    if (!payload_) {
-      return absl::InvalidArgumentError("scan_chunk: no scan is uploaded in this call");
-    }
     if (absl::Status s = lease_->Grow(request_.scan_chunk().data().size(), "scan_chunk"); !s.ok()) {
       return s;
     }
