@@ -29,7 +29,9 @@ struct AlignArgs {
   double overlap_distance_d = AlignOptions().overlap_distance_d;
   int anchor = 0;
   int threads = HardwareThreads();
-  bool cached = false;  // with --server: --scans are ids of targets on the server
+  bool cached = false;    // with --server: --scans are ids of targets on the server
+  bool resample = false;  // --merged onto the joint MLS surface
+  SurfaceResampling resampling;
   RegistrationFlags flags{Method::kMlsSicp};
   ConnectionFlags connection;
 };
@@ -58,6 +60,10 @@ int RunAlign(const AlignArgs& args) {
   const bool remote = args.connection.has_server();
   if (args.cached && !remote) {
     return Fail(absl::InvalidArgumentError("--cached names targets on a server: give --server"));
+  }
+  if (args.resample && args.merged.empty()) {
+    return Fail(
+        absl::InvalidArgumentError("--resample resamples the --merged cloud: give --merged"));
   }
   if (args.cached && (!args.merged.empty() || !args.gt.empty())) {
     return Fail(absl::InvalidArgumentError(
@@ -170,9 +176,20 @@ int RunAlign(const AlignArgs& args) {
     if (absl::Status s = WritePoses(args.out, result->poses, args.scans); !s.ok()) return Fail(s);
   }
   if (!args.merged.empty()) {
-    if (absl::Status s = WritePointCloud(MergeScans(scans, result->poses), args.merged); !s.ok()) {
-      return Fail(s);
+    PointCloud merged = MergeScans(scans, result->poses);
+    if (args.resample) {
+      SurfaceResampling resampling = args.resampling;
+      resampling.threads = std::max(1, args.threads);
+      auto resampled = ResampleOnMlsSurface(merged, result->sampling_distance, resampling);
+      if (!resampled.ok()) return Fail(resampled.status());
+      std::printf(
+          "merged cloud resampled onto the joint MLS surface: %zu points of %zu (radius %.1f d, "
+          "noise %.2f d, %d dropped) in %.2f s\n",
+          resampled->cloud.size(), merged.size(), resampled->radius_d, resampled->noise_sigma_d,
+          resampled->dropped, resampled->seconds);
+      merged = std::move(resampled->cloud);
     }
+    if (absl::Status s = WritePointCloud(merged, args.merged); !s.ok()) return Fail(s);
   }
   if (!args.json.empty()) {
     nlohmann::json j;
@@ -245,6 +262,15 @@ CommandRunner AddAlignCommand(CLI::App& app) {
   cmd->add_option("--gt", args->gt, "ground-truth poses (same formats), to report pose errors");
   cmd->add_option("--out", args->out, "write the poses: .conf (Stanford) or rows (any other name)");
   cmd->add_option("--merged", args->merged, "write every scan in the anchor's frame as one cloud");
+  cmd->add_flag("--resample", args->resample,
+                "with --merged: resample the merged cloud onto the joint MLS surface of all scans "
+                "(one point per voxel, no layers where scans overlap, noise smoothed)");
+  cmd->add_option("--resample-spacing", args->resampling.spacing_d,
+                  "--resample: the voxel edge, units of d")
+      ->capture_default_str();
+  cmd->add_option("--resample-radius", args->resampling.radius_d,
+                  "--resample: MLS support radius, units of d (0: from the merged cloud's noise)")
+      ->capture_default_str();
   cmd->add_option("--json", args->json, "write poses, edges and errors as JSON");
   cmd->add_option("--threads", args->threads,
                   "edges registered at once (with --server the server decides)")

@@ -2,7 +2,8 @@
 # End-to-end: `mlsreg align` on four real Stanford bunny scans (0, 45, 90 and 315 degrees), from
 # their bun.conf poses turned by a few degrees, against bun.conf as ground truth (good to about
 # 0.3 degrees / 0.9 d). Checks: progress per edge, the poses within 0.5 degrees and 2 d of the
-# truth, the written .conf and rows read back as the same poses, the merged cloud, and bad input
+# truth, the written .conf and rows read back as the same poses, the merged cloud (as is and
+# resampled onto the joint MLS surface), and bad input
 # answered with exit 2 and the field named.
 set -euo pipefail
 MLSREG=$1
@@ -46,10 +47,17 @@ assert [c[1] for c in conf] == ["bun000.ply", "bun045.ply", "bun090.ply", "bun31
 PY
 # The written .conf, read back as initial poses, is the result: aligning again moves nothing.
 "$MLSREG" align --scans "${scans[@]}" --poses "$work/poses.conf" --gt "$work/poses.conf" \
-  --pairs overlap --out "$work/again.txt" > "$work/again.log" || fail "align again"
+  --pairs overlap --out "$work/again.txt" --merged "$work/resampled.ply" --resample \
+  > "$work/again.log" || fail "align again"
 grep -q "^# one pose per scan" "$work/again.txt" || fail "rows file: $(cat "$work/again.txt")"
 [ "$(grep -vc '^#' "$work/again.txt")" -eq 4 ] || fail "rows: $(cat "$work/again.txt")"
 head -c 200 "$work/merged.ply" | grep -q "element vertex" || fail "merged cloud"
+# Resampled onto the joint MLS surface: one point per voxel of d, so fewer than merged.
+grep -q "resampled onto the joint MLS surface" "$work/again.log" || fail "resample: $(cat "$work/again.log")"
+vertices() { head -c 400 "$1" | grep -a "element vertex" | awk '{print $3}'; }
+[ "$(vertices "$work/resampled.ply")" -gt 10000 ] && \
+  [ "$(vertices "$work/resampled.ply")" -lt "$(vertices "$work/merged.ply")" ] || \
+  fail "resampled $(vertices "$work/resampled.ply") vs merged $(vertices "$work/merged.ply") points"
 
 # Bad input: exit 2, the field named.
 set +e
@@ -60,8 +68,11 @@ printf '1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1\n' > "$work/one.txt"
 code2=$?
 "$MLSREG" align --scans "${scans[0]}" "${scans[1]}" --pairs ring 2> "$work/bad3.txt"
 code3=$?
+"$MLSREG" align --scans "${scans[0]}" "${scans[1]}" --resample 2> "$work/bad4.txt"
+code4=$?
 set -e
 [ "$code1" -eq 2 ] && grep -q "poses line" "$work/bad1.txt" || fail "bad poses file: $code1 $(cat "$work/bad1.txt")"
 [ "$code2" -eq 2 ] && grep -q "1 poses for 2 scans" "$work/bad2.txt" || fail "pose count: $code2 $(cat "$work/bad2.txt")"
 [ "$code3" -eq 2 ] && grep -q -- "--pairs" "$work/bad3.txt" || fail "bad --pairs: $code3 $(cat "$work/bad3.txt")"
+[ "$code4" -eq 2 ] && grep -q -- "give --merged" "$work/bad4.txt" || fail "--resample alone: $code4 $(cat "$work/bad4.txt")"
 echo "cli align: all checks passed"

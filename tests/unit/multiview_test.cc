@@ -8,7 +8,9 @@
 #include <numbers>
 #include <random>
 
+#include "mlsreg/geometry/target.h"
 #include "mlsreg/multiview/align_scans.h"
+#include "mlsreg/multiview/merged_cloud.h"
 #include "mlsreg/multiview/pose_graph.h"
 
 namespace mlsreg {
@@ -266,6 +268,90 @@ TEST(AlignScansTest, BadInputIsRefusedNamingTheField) {
   tiny[1].points.resize(3);
   s = status(tiny, AlignOptions{});
   EXPECT_NE(s.message().find("scans[1]"), std::string_view::npos) << s.message();
+}
+
+// ---- the merged cloud on the joint MLS surface
+
+// Two noisy caps of the unit sphere that overlap over a quarter of it, each in its own frame.
+struct SphereScans {
+  std::vector<PointCloud> scans;
+  std::vector<Matrix4> poses;  // scan -> world
+};
+SphereScans NoisySphereCaps(double noise, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  SphereScans out;
+  for (const Vec3& facing : {Vec3(0, 0, 1), Vec3(1, 0, 1).normalized()}) {
+    const Matrix4 pose = Pose(0.3 * out.scans.size(), Vec3(0.1, -0.2, 0.05) * out.scans.size());
+    const Matrix4 to_scan = pose.inverse();
+    PointCloud scan;
+    while (scan.size() < 8000) {
+      const Vec3 u = Vec3(gauss(rng), gauss(rng), gauss(rng)).normalized();
+      if (u.dot(facing) < 0.2) continue;
+      const Vec3 p = (1.0 + noise * gauss(rng)) * u;
+      scan.points.push_back(to_scan.topLeftCorner<3, 3>() * p + to_scan.topRightCorner<3, 1>());
+    }
+    out.scans.push_back(std::move(scan));
+    out.poses.push_back(pose);
+  }
+  return out;
+}
+
+double RmsOffSphere(const std::vector<Vec3>& points) {
+  double sum = 0.0;
+  for (const Vec3& p : points) sum += (p.norm() - 1.0) * (p.norm() - 1.0);
+  return std::sqrt(sum / static_cast<double>(points.size()));
+}
+
+TEST(MergedCloudTest, ResamplingPutsOnePointPerVoxelOnTheJointSurfaceAndRemovesTheNoise) {
+  const double noise = 0.01;  // about a third of the caps' sampling distance
+  const SphereScans caps = NoisySphereCaps(noise, 21);
+  const PointCloud merged = MergeScans(caps.scans, caps.poses);
+  ASSERT_EQ(merged.size(), 16000u);
+  EXPECT_NEAR(RmsOffSphere(merged.points), noise, 0.1 * noise);  // merged: the scans' noise
+  auto scan0 = Target::Build(caps.scans[0]);
+  ASSERT_TRUE(scan0.ok());
+  const double d = (*scan0)->sampling_distance();
+  SurfaceResampling options;
+  options.spacing_d = 2.0;  // random samples: their spacing is about twice their mean NN distance
+  options.threads = 2;
+  auto resampled = ResampleOnMlsSurface(merged, d, options);
+  ASSERT_TRUE(resampled.ok()) << resampled.status();
+  const PointCloud& cloud = resampled->cloud;
+  // On the sphere to under half the noise (the MLS fit at the automatic 5 d radius averages a
+  // few dozen samples), with normals along the radius (but at the caps' rims, where the fit is
+  // one-sided).
+  EXPECT_LT(RmsOffSphere(cloud.points), 0.5 * noise);
+  ASSERT_EQ(cloud.normals.size(), cloud.size());
+  double mean_alignment = 0.0;
+  std::size_t tilted = 0;  // more than 18 degrees off the radius
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const double alignment = std::abs(cloud.normals[i].dot(cloud.points[i].normalized()));
+    tilted += alignment < 0.95;
+    mean_alignment += alignment / static_cast<double>(cloud.size());
+  }
+  EXPECT_GT(mean_alignment, 0.98);       // about 9 degrees on average
+  EXPECT_LT(tilted, cloud.size() / 20);  // the rims are a tenth of the points
+  // One point per voxel: the caps' overlap is no longer doubled.
+  EXPECT_LT(cloud.size(), 0.8 * merged.size());
+  EXPECT_GT(cloud.size(), 0.3 * merged.size());
+  EXPECT_LT(resampled->dropped, static_cast<int>(cloud.size() / 50));
+  EXPECT_GE(resampled->radius_d, 5.0);  // the automatic radius' minimum
+  EXPECT_NEAR(resampled->noise_sigma_d, noise / d, 0.5 * noise / d);
+
+  // A chosen radius is used; bad options are refused naming the field.
+  options.radius_d = 7.0;
+  auto wide = ResampleOnMlsSurface(merged, d, options);
+  ASSERT_TRUE(wide.ok()) << wide.status();
+  EXPECT_EQ(wide->radius_d, 7.0);
+  options.spacing_d = 0.0;
+  EXPECT_NE(ResampleOnMlsSurface(merged, d, options).status().message().find("spacing_d"),
+            std::string::npos);
+  EXPECT_NE(ResampleOnMlsSurface(merged, -1.0, {}).status().message().find("d:"),
+            std::string::npos);
+  std::atomic<bool> stop{true};
+  EXPECT_EQ(ResampleOnMlsSurface(merged, d, {}, [&] { return stop.load(); }).status().code(),
+            absl::StatusCode::kCancelled);
 }
 
 }  // namespace

@@ -380,18 +380,4 @@ absl::StatusOr<AlignResult> AlignTargets(const std::vector<std::shared_ptr<const
   return result;
 }
 
-PointCloud MergeScans(const std::vector<PointCloud>& scans, const std::vector<Matrix4>& poses) {
-  PointCloud merged;
-  bool normals = !scans.empty();
-  for (const PointCloud& s : scans) normals = normals && s.has_normals();
-  for (std::size_t i = 0; i < scans.size() && i < poses.size(); ++i) {
-    const Eigen::Matrix3d rotation = poses[i].topLeftCorner<3, 3>();
-    for (std::size_t k = 0; k < scans[i].size(); ++k) {
-      merged.points.push_back(Apply(poses[i], scans[i].points[k]));
-      if (normals) merged.normals.push_back(rotation * scans[i].normals[k]);
-    }
-  }
-  return merged;
-}
-
 }  // namespace mlsreg

@@ -14,6 +14,7 @@
 #include "mlsreg/core/point_cloud.h"
 #include "mlsreg/core/stop_check.h"
 #include "mlsreg/geometry/target.h"
+#include "mlsreg/multiview/merged_cloud.h"
 #include "mlsreg/multiview/pose_graph.h"
 #include "mlsreg/registration/options.h"
 #include "mlsreg/registration/result.h"
@@ -102,8 +103,5 @@ absl::StatusOr<AlignResult> AlignScans(const std::vector<PointCloud>& scans,
 absl::StatusOr<AlignResult> AlignTargets(const std::vector<std::shared_ptr<const Target>>& targets,
                                          const AlignOptions& options,
                                          const AlignCallbacks& callbacks = {});
-
-// Every scan under its pose, one cloud (normals rotated along when all scans have them).
-PointCloud MergeScans(const std::vector<PointCloud>& scans, const std::vector<Matrix4>& poses);
 
 }  // namespace mlsreg

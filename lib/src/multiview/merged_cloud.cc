@@ -1,0 +1,97 @@
+#include "mlsreg/multiview/merged_cloud.h"
+
+#include <chrono>
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
+#include "mlsreg/geometry/mls_projector.h"
+#include "mlsreg/geometry/mls_radius.h"
+#include "mlsreg/geometry/sampling.h"
+#include "mlsreg/geometry/target.h"
+
+namespace mlsreg {
+
+PointCloud MergeScans(const std::vector<PointCloud>& scans, const std::vector<Matrix4>& poses) {
+  PointCloud merged;
+  bool normals = !scans.empty();
+  for (const PointCloud& s : scans) normals = normals && s.has_normals();
+  for (std::size_t i = 0; i < scans.size() && i < poses.size(); ++i) {
+    const Eigen::Matrix3d rotation = poses[i].topLeftCorner<3, 3>();
+    const Vec3 translation = poses[i].topRightCorner<3, 1>();
+    for (std::size_t k = 0; k < scans[i].size(); ++k) {
+      merged.points.push_back(rotation * scans[i].points[k] + translation);
+      if (normals) merged.normals.push_back(rotation * scans[i].normals[k]);
+    }
+  }
+  return merged;
+}
+
+absl::StatusOr<ResampledCloud> ResampleOnMlsSurface(const PointCloud& merged, double d,
+                                                    const SurfaceResampling& options,
+                                                    const StopCheck& should_stop) {
+  const auto start = std::chrono::steady_clock::now();
+  if (!(d > 0.0) || !std::isfinite(d)) {
+    return absl::InvalidArgumentError("d: the sampling distance must be positive");
+  }
+  if (!(options.spacing_d > 0.0 && options.spacing_d <= 100.0)) {
+    return absl::InvalidArgumentError("spacing_d: must be in (0, 100]");
+  }
+  if (!(options.radius_d >= 0.0 && options.radius_d <= 100.0)) {
+    return absl::InvalidArgumentError("radius_d: must be in [0, 100] (0: automatic)");
+  }
+  if (options.threads < 1) return absl::InvalidArgumentError("threads: must be >= 1");
+  // Index, normals and noise of the merged cloud; no patches or features.
+  TargetOptions target_options;
+  target_options.build_mls_patches = false;
+  target_options.build_global_features = false;
+  target_options.threads = options.threads;
+  auto built = Target::Build(merged, target_options, should_stop);
+  if (!built.ok()) {
+    return absl::Status(built.status().code(),
+                        absl::StrCat("merged cloud: ", built.status().message()));
+  }
+  const Target& surface = **built;
+
+  ResampledCloud out;
+  // The noise is measured in the merged cloud's own (denser) d; the radius rule speaks of the
+  // scans' d.
+  out.noise_sigma_d = surface.noise().sigma_d * surface.sampling_distance() / d;
+  out.radius_d = options.radius_d > 0.0 ? options.radius_d : AutoMlsRadiusD(out.noise_sigma_d);
+  MlsOptions mls;
+  mls.radius = out.radius_d * d;
+  mls.search_margin = 0.25;
+  const MlsProjector projector(surface.points(), surface.tree(), mls,
+                               surface.surface().oriented ? &surface.surface().normals : nullptr);
+
+  const std::vector<std::uint32_t> samples =
+      VoxelRepresentatives(surface.points(), options.spacing_d * d);
+  // The normal of the weighted PCA plane of the last fit: the cubic's gradient follows the noise.
+  std::vector<MlsProjection> projected(samples.size());
+  const bool finished = ProjectEach(
+      projector, samples.size(), [&](std::size_t i) { return surface.points()[samples[i]]; },
+      [&](std::size_t i, const MlsProjection& p, const MlsProjector::Workspace& workspace) {
+        projected[i] = p;
+        if (p.status != ProjectionStatus::kOk) return;
+        const Vec3& plane = workspace.last_fit.frame.normal;
+        projected[i].normal = plane.dot(p.normal) < 0.0 ? -plane : plane;
+      },
+      options.threads, should_stop);
+  if (!finished) return absl::CancelledError("stopped while resampling the merged cloud");
+
+  out.cloud.points.reserve(samples.size());
+  out.cloud.normals.reserve(samples.size());
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    const MlsProjection& p = projected[i];
+    if (p.status != ProjectionStatus::kOk ||
+        (p.point - surface.points()[samples[i]]).norm() > mls.radius) {
+      ++out.dropped;
+      continue;
+    }
+    out.cloud.points.push_back(p.point);
+    out.cloud.normals.push_back(p.normal);
+  }
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+}  // namespace mlsreg
