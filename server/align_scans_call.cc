@@ -16,7 +16,7 @@
 #include "mlsreg/wire/convert.h"
 #include "server/align_job.h"
 #include "server/ids.h"
-#include "server/streaming_call.h"
+#include "server/job_call.h"
 
 namespace mlsreg::server {
 namespace {
@@ -24,10 +24,11 @@ namespace {
 // An uploaded scan needs at least this many points (a target's minimum).
 constexpr std::uint64_t kMinScanPoints = 10;
 
-class AlignScansCall final : public StreamingCall<AlignScansReactor> {
+class AlignScansCall final
+    : public JobCall<v1::AlignScansRequest, v1::AlignScansResponse, AlignJob> {
  public:
   AlignScansCall(ServiceContext& c, grpc::CallbackServerContext* ctx)
-      : StreamingCall(c, ctx, "AlignScans") {}
+      : JobCall(c, ctx, "AlignScans") {}
 
   void Begin() { ReadNext("the header"); }
 
@@ -51,36 +52,12 @@ class AlignScansCall final : public StreamingCall<AlignScansReactor> {
     if (!status.ok()) FinishWith(status);
   }
 
-  void OnWriteDone(bool ok) override {
-    EndWait();
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      writing_ = false;
-    }
-    if (!ok) {
-      Abandoned();
-      FinishWith(ClientGone());
-      return;
-    }
-    Pump();
-  }
-
  private:
   struct Upload {
     int scan = 0;
     v1::CloudHeader header;
     std::uint64_t bytes = 0;
   };
-
-  void ReadNext(const char* what) {
-    BeginWait(what);
-    StartRead(&request_);
-  }
-
-  void Abandoned() override {
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (job_) job_->Cancel();
-  }
 
   // Steps 2 and 3.
   absl::Status OnHeader() {
@@ -179,7 +156,7 @@ class AlignScansCall final : public StreamingCall<AlignScansReactor> {
     return payload_->Append(request_.scan_chunk());
   }
 
-  // Step 5: decode the uploads, queue the job, announce it.
+  // Step 5: decode the uploads, queue the job (JobCall relays it).
   absl::Status Submit() {
     if (absl::Status s = lease_->Grow(target_bytes_, "scans"); !s.ok()) return s;
     if (payload_) {
@@ -200,71 +177,25 @@ class AlignScansCall final : public StreamingCall<AlignScansReactor> {
     }
     input_.deadline = ctx_->deadline();
     const std::string request_id = input_.request_id;
-    auto job = std::make_shared<AlignJob>(std::move(input_), &c_.cache, &c_.state.stop_flag());
-    std::weak_ptr<AlignScansCall> weak = std::static_pointer_cast<AlignScansCall>(self());
-    job->SetListener([weak] {
-      if (std::shared_ptr<AlignScansCall> call = weak.lock()) call->Pump();
-    });
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      job_ = job;
-    }
-    auto position = c_.jobs.TrySubmit([job, lease = lease_] { job->Run(); },
-                                      [job](absl::Status s) { job->Fail(std::move(s)); });
-    if (!position.ok()) return position.status();
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      out_.mutable_accepted()->set_request_id(request_id);
-      out_.mutable_accepted()->set_queue_position(*position);
-      accepted_pending_ = true;
-    }
-    Pump();
-    return absl::OkStatus();
+    return Queue(std::make_shared<AlignJob>(std::move(input_), &c_.cache, &c_.state.stop_flag()),
+                 request_id, lease_);
   }
 
-  // Sends what is next, if nothing is being written: the acceptance, the oldest unsent edge, or
-  // the end. Called by reactions and, through the job's listener, by the worker.
-  void Pump() {
-    enum class Next { kNothing, kWrite, kResult, kStatus } next = Next::kNothing;
-    absl::Status status;
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      if (finished_ || writing_ || !job_) return;
-      if (accepted_pending_) {
-        accepted_pending_ = false;
-        next = Next::kWrite;
-      } else {
-        const AlignJob::Update update = job_->NextUpdate();
-        if (update.edge) {
-          out_.Clear();
-          v1::AlignProgress* progress = out_.mutable_progress();
-          wire::ToProto(update.edge->edge, progress->mutable_edge());
-          progress->set_edges_done(update.edge->done);
-          progress->set_edges_total(update.edge->total);
-          progress->set_elapsed_seconds(update.edge->elapsed_seconds);
-          next = Next::kWrite;
-        } else if (update.done) {
-          status = FillResult(*job_);
-          next = status.ok() ? Next::kResult : Next::kStatus;
-          if (status.ok()) finished_ = true;
-        }
-      }
-      if (next == Next::kWrite) writing_ = true;
+  // Every finished edge, then the result.
+  Next NextFromJob(AlignJob& job, absl::Status* status) override {
+    const AlignJob::Update update = job.NextUpdate();
+    if (update.edge) {
+      out_.Clear();
+      v1::AlignProgress* progress = out_.mutable_progress();
+      wire::ToProto(update.edge->edge, progress->mutable_edge());
+      progress->set_edges_done(update.edge->done);
+      progress->set_edges_total(update.edge->total);
+      progress->set_elapsed_seconds(update.edge->elapsed_seconds);
+      return Next::kWrite;
     }
-    switch (next) {
-      case Next::kWrite:
-        BeginWait("the client to read a response");
-        StartWrite(&out_);
-        break;
-      case Next::kResult:
-        StartWriteAndFinish(&out_, grpc::WriteOptions(), scope_.Finish(absl::OkStatus()));
-        break;
-      case Next::kStatus:
-        FinishWith(status);
-        break;
-      case Next::kNothing:
-        break;
-    }
+    if (!update.done) return Next::kNothing;
+    *status = FillResult(job);
+    return status->ok() ? Next::kResult : Next::kStatus;
   }
 
   // The result message into out_, or the status the call ends with. Requires mutex_.
@@ -279,7 +210,6 @@ class AlignScansCall final : public StreamingCall<AlignScansReactor> {
     return absl::OkStatus();
   }
 
-  v1::AlignScansRequest request_;
   bool have_header_ = false;
   AlignInput input_;
   std::vector<Upload> uploads_;
@@ -289,11 +219,6 @@ class AlignScansCall final : public StreamingCall<AlignScansReactor> {
   // (estimated); shared with the job, so held until it ends.
   std::shared_ptr<InFlightBudget::Lease> lease_ =
       std::make_shared<InFlightBudget::Lease>(&c_.inflight);
-  // Guarded by mutex_:
-  std::shared_ptr<AlignJob> job_;
-  v1::AlignScansResponse out_;  // the message being written (alive until OnWriteDone)
-  bool accepted_pending_ = false;
-  bool writing_ = false;
 };
 
 }  // namespace

@@ -16,6 +16,7 @@
 #include "mlsreg/wire/convert.h"
 #include "server/align_scans_call.h"
 #include "server/ids.h"
+#include "server/job_call.h"
 #include "server/registration_job.h"
 #include "server/services.h"
 #include "server/streaming_call.h"
@@ -28,10 +29,10 @@ constexpr std::uint64_t kMinSourcePoints = 3;
 
 using RegisterReactor = grpc::ServerBidiReactor<v1::RegisterRequest, v1::RegisterResponse>;
 
-class RegisterCall final : public StreamingCall<RegisterReactor> {
+class RegisterCall final
+    : public JobCall<v1::RegisterRequest, v1::RegisterResponse, RegistrationJob> {
  public:
-  RegisterCall(ServiceContext& c, grpc::CallbackServerContext* ctx)
-      : StreamingCall(c, ctx, "Register") {}
+  RegisterCall(ServiceContext& c, grpc::CallbackServerContext* ctx) : JobCall(c, ctx, "Register") {}
 
   void Begin() { ReadNext("the header"); }
 
@@ -55,31 +56,7 @@ class RegisterCall final : public StreamingCall<RegisterReactor> {
     if (!status.ok()) FinishWith(status);
   }
 
-  void OnWriteDone(bool ok) override {
-    EndWait();
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      writing_ = false;
-    }
-    if (!ok) {
-      Abandoned();
-      FinishWith(ClientGone());
-      return;
-    }
-    Pump();
-  }
-
  private:
-  void ReadNext(const char* what) {
-    BeginWait(what);
-    StartRead(&request_);
-  }
-
-  void Abandoned() override {
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (job_) job_->Cancel();
-  }
-
   // Steps 2 and 3.
   absl::Status OnHeader() {
     if (!request_.has_header()) {
@@ -171,7 +148,7 @@ class RegisterCall final : public StreamingCall<RegisterReactor> {
     return payload_->Append(request_.source_chunk());
   }
 
-  // Step 5: decode, queue the job, announce it.
+  // Step 5: decode, queue the job (JobCall relays it).
   absl::Status Submit() {
     std::string payload = inline_source_ ? std::move(*inline_source_) : payload_->Release();
     if (absl::Status s = lease_->Grow(decoded_bytes_, "source"); !s.ok()) return s;
@@ -187,68 +164,22 @@ class RegisterCall final : public StreamingCall<RegisterReactor> {
     scope_.add_detail(
         absl::StrCat("method=", method_name_, " source_points=", input_.source.size()));
     const std::string request_id = input_.request_id;
-    auto job =
-        std::make_shared<RegistrationJob>(std::move(input_), &c_.cache, &c_.state.stop_flag());
-    std::weak_ptr<RegisterCall> weak = std::static_pointer_cast<RegisterCall>(self());
-    job->SetListener([weak] {
-      if (std::shared_ptr<RegisterCall> call = weak.lock()) call->Pump();
-    });
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      job_ = job;
-    }
-    auto position = c_.jobs.TrySubmit([job, lease = lease_] { job->Run(); },
-                                      [job](absl::Status s) { job->Fail(std::move(s)); });
-    if (!position.ok()) return position.status();
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      out_.mutable_accepted()->set_request_id(request_id);
-      out_.mutable_accepted()->set_queue_position(*position);
-      accepted_pending_ = true;
-    }
-    Pump();
-    return absl::OkStatus();
+    return Queue(
+        std::make_shared<RegistrationJob>(std::move(input_), &c_.cache, &c_.state.stop_flag()),
+        request_id, lease_);
   }
 
-  // Sends what is next, if nothing is being written: the acceptance, the newest progress, or
-  // the end. Called by reactions and, through the job's listener, by the worker.
-  void Pump() {
-    enum class Next { kNothing, kWrite, kResult, kStatus } next = Next::kNothing;
-    absl::Status status;
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      if (finished_ || writing_ || !job_) return;
-      if (accepted_pending_) {
-        accepted_pending_ = false;
-        next = Next::kWrite;
-      } else {
-        const RegistrationJob::Update update = job_->WaitForUpdate(std::chrono::milliseconds(0));
-        if (update.progress) {
-          out_.Clear();
-          wire::ToProto(*update.progress, out_.mutable_progress());
-          next = Next::kWrite;
-        } else if (update.done) {
-          status = FillResult(*job_);
-          next = status.ok() ? Next::kResult : Next::kStatus;
-          if (status.ok()) finished_ = true;
-        }
-      }
-      if (next == Next::kWrite) writing_ = true;
+  // The newest progress (latest wins), then the result.
+  Next NextFromJob(RegistrationJob& job, absl::Status* status) override {
+    const RegistrationJob::Update update = job.WaitForUpdate(std::chrono::milliseconds(0));
+    if (update.progress) {
+      out_.Clear();
+      wire::ToProto(*update.progress, out_.mutable_progress());
+      return Next::kWrite;
     }
-    switch (next) {
-      case Next::kWrite:
-        BeginWait("the client to read a response");
-        StartWrite(&out_);
-        break;
-      case Next::kResult:
-        StartWriteAndFinish(&out_, grpc::WriteOptions(), scope_.Finish(absl::OkStatus()));
-        break;
-      case Next::kStatus:
-        FinishWith(status);
-        break;
-      case Next::kNothing:
-        break;
-    }
+    if (!update.done) return Next::kNothing;
+    *status = FillResult(job);
+    return status->ok() ? Next::kResult : Next::kStatus;
   }
 
   // The result message into out_, or the status the call ends with. Requires mutex_.
@@ -272,7 +203,6 @@ class RegisterCall final : public StreamingCall<RegisterReactor> {
     return absl::OkStatus();
   }
 
-  v1::RegisterRequest request_;
   RegistrationInput input_;
   std::string method_name_;
   v1::CloudHeader source_header_;
@@ -283,11 +213,6 @@ class RegisterCall final : public StreamingCall<RegisterReactor> {
   // job, so held until it ends.
   std::shared_ptr<InFlightBudget::Lease> lease_ =
       std::make_shared<InFlightBudget::Lease>(&c_.inflight);
-  // Guarded by mutex_:
-  std::shared_ptr<RegistrationJob> job_;
-  v1::RegisterResponse out_;  // the message being written (alive until OnWriteDone)
-  bool accepted_pending_ = false;
-  bool writing_ = false;
 };
 
 class RegistrationServiceImpl final : public v1::RegistrationService::CallbackService {

@@ -1,5 +1,5 @@
-// StreamingCall: what the two streaming RPCs (CreateTarget, Register) share on gRPC's callback
-// API. Such a call holds no thread while it waits for its client: it is a reactor whose
+// StreamingCall: what the streaming RPCs (CreateTarget, Register, AlignScans) share on gRPC's
+// callback API. Such a call holds no thread while it waits for its client: it is a reactor whose
 // reactions run briefly on gRPC's threads, with the CPU work on the JobPool. The base owns
 //  - the call's lifetime: a shared_ptr to itself, dropped in OnDone, so workers and the idle
 //    watchdog can hold weak references and never touch a freed call;
