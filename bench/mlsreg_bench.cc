@@ -11,6 +11,8 @@
 #include "mlsreg/geometry/sampling.h"
 #include "mlsreg/io/io.h"
 #include "mlsreg/io/manifest.h"
+#include "mlsreg/multiview/align_scans.h"
+#include "mlsreg/multiview/merged_cloud.h"
 #include "mlsreg/registration/global_candidates.h"
 #include "mlsreg/registration/registration.h"
 #include "support/synthetic.h"
@@ -299,6 +301,74 @@ void BM_DenseClusterSource(benchmark::State& state) {
   state.SetLabel(cancel ? "cancelled at once" : "one iteration");
 }
 BENCHMARK(BM_DenseClusterSource)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+// ---- many scans into one frame
+// The three bundled bunny scans (bun315, bun000, bun045: 40k points each) in bun000's frame by
+// data/bunny/pairs.csv, the first and last turned by 5 degrees and moved by 5 d.
+struct BunnyViews {
+  std::vector<PointCloud> scans;
+  std::vector<Matrix4> truth, start;
+  double d = 0.0;
+};
+
+const BunnyViews& Views() {
+  static const BunnyViews views = [] {
+    BunnyViews v;
+    const std::string dir = std::string(MLSREG_SOURCE_DIR) + "/data/bunny/";
+    auto manifest = ReadManifest(dir + "pairs.csv");
+    Matrix4 bun000_to_bun045 = Matrix4::Identity(), bun315_to_bun000 = Matrix4::Identity();
+    for (const RegistrationProblem& p : manifest->problems) {
+      (p.id == "bun000_bun045" ? bun000_to_bun045 : bun315_to_bun000) = *p.ground_truth;
+    }
+    for (const char* name : {"bun315.ply", "bun000.ply", "bun045.ply"}) {
+      v.scans.push_back(*ReadPointCloud(dir + name));
+    }
+    v.truth = {bun315_to_bun000, Matrix4::Identity(), bun000_to_bun045.inverse()};
+    v.d = Pair().target->sampling_distance();
+    for (std::size_t i = 0; i < v.truth.size(); ++i) {
+      v.start.push_back(i == 1
+                            ? v.truth[i]
+                            : RandomPerturbation(5.0, 5.0 * v.d, Vec3::Zero(), 3 + i) * v.truth[i]);
+    }
+    return v;
+  }();
+  return views;
+}
+
+// AlignScans over the three views, sequential pairs (2 MLS-SICP edges), anchor bun000: the
+// three target builds, the edges (argument: threads) and the pose graph. Compare with
+// BM_TargetBuild/0 and BM_Registration/2 of the same run.
+void BM_AlignScans(benchmark::State& state) {
+  const BunnyViews& v = Views();
+  AlignOptions options;
+  options.pairs = PairPolicy::kSequential;
+  options.initial_poses = v.start;
+  options.anchor = 1;
+  options.threads = static_cast<int>(state.range(0));
+  double graph_iterations = 0;
+  for (auto _ : state) {
+    auto result = AlignScans(v.scans, options);
+    graph_iterations = result->graph_iterations;
+    benchmark::DoNotOptimize(result);
+  }
+  state.counters["graph_iterations"] = graph_iterations;
+}
+BENCHMARK(BM_AlignScans)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The three views merged under their true poses (120k points), resampled onto the joint MLS
+// surface, one point per voxel of d, on one thread. Counter points: the resampled cloud's.
+void BM_ResampleMerged(benchmark::State& state) {
+  const BunnyViews& v = Views();
+  const PointCloud merged = MergeScans(v.scans, v.truth);
+  std::size_t points = 0;
+  for (auto _ : state) {
+    auto resampled = ResampleOnMlsSurface(merged, v.d);
+    points = resampled->cloud.size();
+    benchmark::DoNotOptimize(resampled);
+  }
+  state.counters["points"] = static_cast<double>(points);
+}
+BENCHMARK(BM_ResampleMerged)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace mlsreg

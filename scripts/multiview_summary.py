@@ -49,6 +49,18 @@ def main():
         if loops and sigma != "real":
             print(f"\nLoop closure of the chained MLS-SICP edges (AlignScans MLS-SICP): "
                   f"median {statistics.median(loops):.3g} d, max {max(loops):.3g} d.")
+            drift = [float(r["max_drift_removed_d"]) for r in here
+                     if r["row"] == "AlignScans MLS-SICP" and r.get("max_drift_removed_d")]
+            if drift:
+                print(f"Chained poses against the optimised ones (the largest per set): median "
+                      f"{statistics.median(drift):.3g} d, max {max(drift):.3g} d.")
+            resampled = [(r["set"], float(r["merged_rmse_d"]), float(r["resampled_rmse_d"]))
+                         for r in here
+                         if r["row"] == "AlignScans MLS-SICP" and r.get("resampled_rmse_d")]
+            if resampled:
+                print("Merged cloud RMSE to the mesh, as merged -> resampled onto the joint MLS "
+                      "surface (`--resample`): "
+                      + ", ".join(f"{n} {a:.3g} -> {b:.3g} d" for n, a, b in resampled) + ".")
     if args.figure:
         fig, axes = plt.subplots(1, 4, figsize=(15, 4), sharey=True)
         for ax, sigma in zip(axes, sigmas):

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <map>
 #include <random>
+#include <set>
 #include <sstream>
 #include <thread>
 
@@ -543,6 +544,8 @@ absl::StatusOr<RemoteAlignResult> Client::AlignScans(
     }
   }
   int attempts = 1;
+  // A retried call runs every edge again: each is reported once, the first time it arrives.
+  std::set<std::pair<int, int>> reported;
   auto result = impl_->Call<RemoteAlignResult>(
       route, [&]() -> Replica& { return impl_->Choose(route); },
       [&](Replica& replica, grpc::ClientContext& context) -> absl::StatusOr<RemoteAlignResult> {
@@ -563,8 +566,9 @@ absl::StatusOr<RemoteAlignResult> Client::AlignScans(
           if (response.has_accepted()) {
             out.request_id = response.accepted().request_id();
           } else if (response.has_progress()) {
-            if (on_edge) {
-              on_edge(wire::FromProto(response.progress().edge()), response.progress().edges_done(),
+            const v1::AlignEdge& edge = response.progress().edge();
+            if (on_edge && reported.emplace(edge.from(), edge.to()).second) {
+              on_edge(wire::FromProto(edge), static_cast<int>(reported.size()),
                       response.progress().edges_total());
             }
           } else if (response.has_result()) {

@@ -36,7 +36,7 @@ from ._mlsreg import Error, Target, methods, parameters, read_poses
 __all__ = [
     "Cloud", "Target", "IterationReport", "Result", "PoseError", "BatchOutcome", "Client",
     "RegistrationStream", "Error", "read_cloud", "register", "evaluate", "methods", "parameters",
-    "TRACE_DTYPE", "AlignResult", "align_scans", "read_poses",
+    "TRACE_DTYPE", "AlignResult", "align_scans", "merge_scans", "read_poses",
 ]
 
 __version__ = "0.1.0"
@@ -218,6 +218,17 @@ def align_scans(scans: Sequence, poses=None, pairs: str = "loop", method: str = 
     raw = _mlsreg._align_scans(list(scans), poses, pairs, method, min_overlap,
                                overlap_distance_d, anchor, threads, callback, params)
     return AlignResult(**raw)
+
+
+def merge_scans(scans: Sequence, poses: Sequence, resample: bool = False, spacing_d: float = 1.0,
+                radius_d: float = 0.0, d: Optional[float] = None, threads: int = 1) -> Cloud:
+    """Every scan under its pose (e.g. ``align_scans(...).poses``) as one Cloud. With
+    ``resample``, one point per voxel of ``spacing_d`` d projected onto the joint MLS surface of
+    all scans (``radius_d`` d; 0: from the merged cloud's noise), with the surface's normals;
+    ``d`` is the scans' sampling distance (``AlignResult.sampling_distance``; measured when
+    None). The GIL is released while resampling."""
+    raw = _mlsreg._merge_scans(list(scans), list(poses), resample, spacing_d, radius_d, d, threads)
+    return Cloud(**raw)
 
 
 @dataclasses.dataclass

@@ -6,14 +6,18 @@
 #include <pybind11/stl.h>
 
 #include <functional>
+#include <optional>
 
 #include "absl/strings/str_cat.h"
 #include "mlsreg/client/client.h"
 #include "mlsreg/evaluation/metrics.h"
+#include "mlsreg/geometry/kd_tree.h"
+#include "mlsreg/geometry/sampling.h"
 #include "mlsreg/geometry/target.h"
 #include "mlsreg/io/io.h"
 #include "mlsreg/io/pose_files.h"
 #include "mlsreg/multiview/align_scans.h"
+#include "mlsreg/multiview/merged_cloud.h"
 #include "mlsreg/registration/method.h"
 #include "mlsreg/registration/parameters.h"
 #include "mlsreg/registration/registration.h"
@@ -239,7 +243,48 @@ py::dict AlignScansFromPython(const py::list& scans, py::object poses, const std
   return AlignResultToPython(ValueOrThrow(std::move(result)));
 }
 
+// The scans under their poses as one cloud; resampled onto the joint MLS surface when asked,
+// with d the scans' mean sampling distance unless given.
+py::dict MergeScansFromPython(const py::list& scans, const py::list& poses, bool resample,
+                              double spacing_d, double radius_d, py::object d, int threads) {
+  std::vector<PointCloud> clouds;
+  std::vector<Matrix4> transforms;
+  for (std::size_t i = 0; i < scans.size(); ++i) {
+    clouds.push_back(CloudFromPython(scans[i], absl::StrCat("scans[", i, "]")));
+  }
+  std::size_t i = 0;
+  for (py::handle pose : poses) {
+    transforms.push_back(TransformFromPython(pose, absl::StrCat("poses[", i++, "]")));
+  }
+  if (transforms.size() != clouds.size()) {
+    throw py::value_error(
+        absl::StrCat("poses: ", transforms.size(), " poses for ", clouds.size(), " scans"));
+  }
+  PointCloud merged = MergeScans(clouds, transforms);
+  if (!resample) return CloudToPython(merged);
+  const std::optional<double> given_d =
+      d.is_none() ? std::nullopt : std::optional<double>(d.cast<double>());
+  SurfaceResampling options;
+  options.spacing_d = spacing_d;
+  options.radius_d = radius_d;
+  options.threads = threads;
+  absl::StatusOr<ResampledCloud> resampled;
+  {
+    py::gil_scoped_release release;
+    double unit = given_d.value_or(0.0);
+    for (std::size_t k = 0; !given_d && k < clouds.size(); ++k) {
+      const KdTree tree(clouds[k].points);
+      unit += SamplingDistance(clouds[k].points, tree) / static_cast<double>(clouds.size());
+    }
+    resampled = ResampleOnMlsSurface(merged, unit, options);
+  }
+  return CloudToPython(ValueOrThrow(std::move(resampled)).cloud);
+}
+
 void BindMultiview(py::module_& m) {
+  m.def("_merge_scans", &MergeScansFromPython, py::arg("scans"), py::arg("poses"),
+        py::arg("resample"), py::arg("spacing_d"), py::arg("radius_d"), py::arg("d"),
+        py::arg("threads"));
   m.def("_align_scans", &AlignScansFromPython, py::arg("scans"), py::arg("poses"), py::arg("pairs"),
         py::arg("method"), py::arg("min_overlap"), py::arg("overlap_distance_d"), py::arg("anchor"),
         py::arg("threads"), py::arg("callback"), py::arg("params"));

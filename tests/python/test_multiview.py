@@ -46,6 +46,25 @@ def test_the_bunny_ring_is_aligned_to_its_ground_truth(scans, truth):
     assert all(e["kept"] for e in result.edges)
 
 
+def test_merge_scans_as_is_and_resampled_onto_the_joint_surface(scans, truth):
+    to0 = np.linalg.inv(truth[0])
+    poses = [to0 @ t for t in truth]
+    merged = mlsreg.merge_scans(scans, poses)
+    assert isinstance(merged, mlsreg.Cloud) and len(merged) == sum(len(s) for s in scans)
+    moved = scans[1].points @ poses[1][:3, :3].T + poses[1][:3, 3]
+    assert np.allclose(merged.points[len(scans[0]):len(scans[0]) + len(scans[1])], moved)
+    resampled = mlsreg.merge_scans(scans, poses, resample=True, threads=2)
+    # One point per voxel of d: fewer than merged, each on a unit normal, and near the scans.
+    assert 0.2 * len(merged) < len(resampled) < len(merged)
+    assert np.allclose(np.linalg.norm(resampled.normals, axis=1), 1.0)
+    lo, hi = merged.points.min(axis=0), merged.points.max(axis=0)
+    assert np.all(resampled.points >= lo - 0.005) and np.all(resampled.points <= hi + 0.005)
+    with pytest.raises(ValueError, match="2 poses for 3 scans"):
+        mlsreg.merge_scans(scans, poses[:2])
+    with pytest.raises(ValueError, match="spacing_d"):
+        mlsreg.merge_scans(scans, poses, resample=True, spacing_d=0)
+
+
 def test_a_callback_returning_false_cancels(scans, truth):
     with pytest.raises(mlsreg.Error) as raised:
         mlsreg.align_scans(scans, poses=truth, callback=lambda e, done, total: False)

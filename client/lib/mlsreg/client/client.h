@@ -98,7 +98,8 @@ class Client {
 
   // Aligns many scans into one frame on one server: the replica of the first cached scan's
   // target id (every cached scan must be on it), or any replica when all are uploaded.
-  // `on_edge` (may be empty) sees every edge as it finishes, with the count done and the total.
+  // `on_edge` (may be empty) sees every edge as it finishes, with the count done and the total;
+  // once each, also when a transient failure made the call run again.
   // Set `*cancel` (may be null) to true from another thread to cancel the call.
   absl::StatusOr<RemoteAlignResult> AlignScans(
       const std::vector<RemoteScan>& scans, const AlignOptions& options,
