@@ -182,7 +182,7 @@ class AlignScansCall final
   }
 
   // Every finished edge, then the result.
-  Next NextFromJob(AlignJob& job, absl::Status* status) override {
+  absl::StatusOr<Next> NextFromJob(AlignJob& job) override {
     const AlignJob::Update update = job.NextUpdate();
     if (update.edge) {
       out_.Clear();
@@ -194,8 +194,8 @@ class AlignScansCall final
       return Next::kWrite;
     }
     if (!update.done) return Next::kNothing;
-    *status = FillResult(job);
-    return status->ok() ? Next::kResult : Next::kStatus;
+    if (absl::Status s = FillResult(job); !s.ok()) return s;
+    return Next::kResult;
   }
 
   // The result message into out_, or the status the call ends with. Requires mutex_.

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "absl/status/status.h"
+#include "absl/status/statusor.h"
 #include "server/inflight_budget.h"
 #include "server/streaming_call.h"
 
@@ -36,12 +37,12 @@ class JobCall : public StreamingCall<grpc::ServerBidiReactor<Request, Response>>
 
  protected:
   using Base::Base;
-  enum class Next { kNothing, kWrite, kResult, kStatus };
+  enum class Next { kNothing, kWrite, kResult };
 
   // Under the call's lock, while the job runs or has ended: its next update into out_ (kWrite),
-  // or at its end the result into out_ (kResult) or the status to end with into *status
-  // (kStatus); kNothing while there is nothing new.
-  virtual Next NextFromJob(Job& job, absl::Status* status) = 0;
+  // or at its end the result into out_ (kResult) or the status the call ends with (an error);
+  // kNothing while there is nothing new.
+  virtual absl::StatusOr<Next> NextFromJob(Job& job) = 0;
 
   void ReadNext(const char* what) {
     this->BeginWait(what);
@@ -85,8 +86,7 @@ class JobCall : public StreamingCall<grpc::ServerBidiReactor<Request, Response>>
   // Sends what is next, if nothing is being written. Called by reactions and, through the job's
   // listener, by the worker.
   void Pump() {
-    Next next = Next::kNothing;
-    absl::Status status;
+    absl::StatusOr<Next> next = Next::kNothing;
     {
       std::lock_guard<std::mutex> lock(this->mutex_);
       if (this->finished_ || writing_ || !job_) return;
@@ -94,12 +94,16 @@ class JobCall : public StreamingCall<grpc::ServerBidiReactor<Request, Response>>
         accepted_pending_ = false;
         next = Next::kWrite;
       } else {
-        next = NextFromJob(*job_, &status);
-        if (next == Next::kResult) this->finished_ = true;
+        next = NextFromJob(*job_);
+        if (next.ok() && *next == Next::kResult) this->finished_ = true;
       }
-      if (next == Next::kWrite) writing_ = true;
+      if (next.ok() && *next == Next::kWrite) writing_ = true;
     }
-    switch (next) {
+    if (!next.ok()) {
+      this->FinishWith(next.status());
+      return;
+    }
+    switch (*next) {
       case Next::kWrite:
         this->BeginWait("the client to read a response");
         this->StartWrite(&out_);
@@ -107,9 +111,6 @@ class JobCall : public StreamingCall<grpc::ServerBidiReactor<Request, Response>>
       case Next::kResult:
         this->StartWriteAndFinish(&out_, grpc::WriteOptions(),
                                   this->scope_.Finish(absl::OkStatus()));
-        break;
-      case Next::kStatus:
-        this->FinishWith(status);
         break;
       case Next::kNothing:
         break;

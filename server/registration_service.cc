@@ -170,7 +170,7 @@ class RegisterCall final
   }
 
   // The newest progress (latest wins), then the result.
-  Next NextFromJob(RegistrationJob& job, absl::Status* status) override {
+  absl::StatusOr<Next> NextFromJob(RegistrationJob& job) override {
     const RegistrationJob::Update update = job.WaitForUpdate(std::chrono::milliseconds(0));
     if (update.progress) {
       out_.Clear();
@@ -178,8 +178,8 @@ class RegisterCall final
       return Next::kWrite;
     }
     if (!update.done) return Next::kNothing;
-    *status = FillResult(job);
-    return status->ok() ? Next::kResult : Next::kStatus;
+    if (absl::Status s = FillResult(job); !s.ok()) return s;
+    return Next::kResult;
   }
 
   // The result message into out_, or the status the call ends with. Requires mutex_.
