@@ -245,6 +245,14 @@ def pose_errors(clouds, estimate, truth, d):
     return rms, rot
 
 
+def voxel_merged(o3d, clouds, estimate, d):
+    """Open3D 0.16's counterpart of --resample: the merged cloud voxel-downsampled at d
+    (voxel centroids), in view 0's frame."""
+    points = np.vstack([c @ e[:3, :3].T + e[:3, 3] for c, e in zip(clouds, estimate)])
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points)).voxel_down_sample(d)
+    return np.asarray(cloud.points)
+
+
 def merged_rmse(o3d, clouds, estimate, truth, mesh_path, d):
     mesh = o3d.io.read_triangle_mesh(mesh_path)
     scene = o3d.t.geometry.RaycastingScene()
@@ -314,6 +322,9 @@ def main():
                      "edges_dropped": sum(not e["kept"] for e in report["edges"]) if report else "",
                      "merged_rmse_d": merged_rmse(o3d, clouds, poses, truth, mesh, d) if mesh else "",
                      "resampled_rmse_d": merged_rmse(o3d, resampled, [np.eye(4)], truth, mesh, d)
+                     if mesh and row == "AlignScans MLS-SICP" else "",
+                     "o3d_voxel_rmse_d": merged_rmse(o3d, [voxel_merged(o3d, clouds, poses, d)],
+                                                     [np.eye(4)], truth, mesh, d)
                      if mesh and row == "AlignScans MLS-SICP" else ""}
             results.append(entry)
             print(f"{label:12s} sigma {sigma:>4s}  {row:20s}  pose RMSE median "

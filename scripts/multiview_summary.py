@@ -54,13 +54,15 @@ def main():
             if drift:
                 print(f"Chained poses against the optimised ones (the largest per set): median "
                       f"{statistics.median(drift):.3g} d, max {max(drift):.3g} d.")
-            resampled = [(r["set"], float(r["merged_rmse_d"]), float(r["resampled_rmse_d"]))
-                         for r in here
+            resampled = [(r["set"], float(r["merged_rmse_d"]), float(r["resampled_rmse_d"]),
+                          float(r["o3d_voxel_rmse_d"])) for r in here
                          if r["row"] == "AlignScans MLS-SICP" and r.get("resampled_rmse_d")]
             if resampled:
-                print("Merged cloud RMSE to the mesh, as merged -> resampled onto the joint MLS "
-                      "surface (`--resample`): "
-                      + ", ".join(f"{n} {a:.3g} -> {b:.3g} d" for n, a, b in resampled) + ".")
+                print("Merged cloud RMSE to the mesh (AlignScans MLS-SICP poses), as merged -> "
+                      "resampled onto the joint MLS surface (`--resample`) / Open3D's "
+                      "voxel_down_sample at d: "
+                      + ", ".join(f"{n} {a:.3g} -> {b:.3g} / {c:.3g} d"
+                                  for n, a, b, c in resampled) + ".")
     if args.figure:
         fig, axes = plt.subplots(1, 4, figsize=(15, 4), sharey=True)
         for ax, sigma in zip(axes, sigmas):
