@@ -11,6 +11,8 @@ using CommandRunner = std::function<int()>;
 
 // `mlsreg register`: one in-process registration, streamed one line per iteration.
 CommandRunner AddRegisterCommand(CLI::App& app);
+// `mlsreg verify`: the verdict on a given transform.
+CommandRunner AddVerifyCommand(CLI::App& app);
 // `mlsreg eval`: methods over a manifest with ground truth, one CSV row per run.
 CommandRunner AddEvalCommand(CLI::App& app);
 // `mlsreg serve`: the gRPC server, until SIGTERM/SIGINT (then drains).

@@ -97,6 +97,11 @@ const char* kFixedColumns[] = {"manifest",
                                "initial_rotation_error_deg",
                                "initial",
                                "verified",
+                               "verdict",
+                               "verify_overlap_fraction",
+                               "verify_explained_fraction",
+                               "verify_worst_direction_fraction",
+                               "verify_band_d",
                                "auto_chosen",
                                "auto_candidates",
                                "auto_early_exit",
@@ -181,8 +186,17 @@ int RunEval(const EvalArgs& args) {
         std::vector<double> initial;
         for (int i = 0; i < 16; ++i) initial.push_back(o.initial(i / 4, i % 4));
         f.push_back(JoinNumbers(initial, "%.10g"));
+        if (const std::optional<VerificationScore>& v = r.verification) {
+          f.push_back(v->verified() ? "1" : "0");
+          f.push_back(std::string(VerdictName(v->verdict)));
+          f.push_back(absl::StrFormat("%.4f", v->inlier_fraction));
+          f.push_back(absl::StrFormat("%.4f", v->explained_fraction));
+          f.push_back(absl::StrFormat("%.4f", v->worst_direction_fraction));
+          f.push_back(absl::StrFormat("%.4f", v->inlier_distance_d));
+        } else {
+          f.insert(f.end(), 6, std::string());
+        }
         if (const std::optional<AutoReport>& a = r.auto_report; a && !a->candidates.empty()) {
-          f.push_back(a->verified ? "1" : "0");
           f.push_back(absl::StrFormat("%d", a->chosen));
           f.push_back(absl::StrFormat("%zu", a->candidates.size()));
           f.push_back(a->early_exit ? "1" : "0");
@@ -191,7 +205,7 @@ int RunEval(const EvalArgs& args) {
           f.push_back(absl::StrFormat("%.4f", a->verification.rmse_d));
           f.push_back(absl::StrFormat("%.4f", a->verification.inlier_distance_d));
         } else {
-          f.insert(f.end(), 8, std::string());
+          f.insert(f.end(), 7, std::string());
         }
         rmse_by_method[o.method].push_back(o.error.rmse_d);
         time_by_method[o.method].push_back(r.timings.total);

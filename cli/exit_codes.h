@@ -11,7 +11,7 @@ inline constexpr int kExitOk = 0;
 inline constexpr int kExitFailed = 1;       // I/O, server, internal error; a failed batch job
 inline constexpr int kExitBadInput = 2;     // bad arguments or input (INVALID_ARGUMENT)
 inline constexpr int kExitMissed = 3;       // eval: some run failed or missed 5 d
-inline constexpr int kExitNotVerified = 4;  // register: method auto found no pose that verifies
+inline constexpr int kExitNotVerified = 4;  // register, verify: the result does not verify
 
 struct ExitCode {
   int code;
@@ -26,9 +26,9 @@ inline constexpr ExitCode kExitCodes[] = {
      "internal error (batch: some job failed; health: some server is not serving)"},
     {kExitBadInput, "all", "bad arguments or input (the message names the flag or field)"},
     {kExitMissed, "eval", "some run failed or missed the 5 d success threshold"},
-    {kExitNotVerified, "register",
-     "method auto registered, but no pose verifies against the target's MLS surface: the "
-     "printed transform is the best found and must not be trusted"},
+    {kExitNotVerified, "register, verify",
+     "the registration ran, but its result does not verify against the target (verify: the "
+     "given transform does not): the printed transform must not be trusted"},
 };
 
 }  // namespace mlsreg::cli

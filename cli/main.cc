@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
     commands.emplace_back(app.get_subcommands({})[before], std::move(run));
   };
   add(&mlsreg::cli::AddRegisterCommand);
+  add(&mlsreg::cli::AddVerifyCommand);
   add(&mlsreg::cli::AddEvalCommand);
   add(&mlsreg::cli::AddServeCommand);
   add(&mlsreg::cli::AddTargetsCommand);

@@ -62,7 +62,7 @@ int Finish(const RegisterArgs& args, const RegistrationOptions& options,
     out << ResultJson(MethodName(options.method), result, error).dump(2) << "\n";
     if (!out) return Fail(absl::UnavailableError("cannot write --json file '" + args.json + "'"));
   }
-  if (result.auto_report && !result.auto_report->verified &&
+  if (result.verification && !result.verification->verified() &&
       result.termination != Termination::kCancelled) {
     return kExitNotVerified;
   }

@@ -37,6 +37,18 @@ std::string FormatIteration(const IterationReport& r) {
              r.admm_iterations, r.elapsed_seconds);
 }
 
+std::string FormatVerification(const VerificationScore& v) {
+  const std::string evidence = absl::StrFormat(
+      "%.1f %% of the overlap (%d of %d covered samples) within %.4g (%.2f d) of the target's "
+      "surface, RMSE %.3f d; weakest direction: %s, %.1f %% of its %d samples",
+      100.0 * v.inlier_fraction, v.inliers, v.covered, v.inlier_distance, v.inlier_distance_d,
+      v.rmse_d, v.WorstDirectionText(), 100.0 * v.worst_direction_fraction,
+      v.worst_direction_samples);
+  if (v.verified()) return "verification: verified: " + evidence;
+  return absl::StrFormat("verification: NOT VERIFIED (%s; do not trust the transform): %s",
+                         VerdictName(v.verdict), evidence);
+}
+
 std::string FormatResult(const RegistrationResult& result, const std::optional<PoseError>& error) {
   std::string out = absl::StrFormat("result: %s after %d iterations in %.3f s (d = %.6g)\n",
                                     TerminationName(result.termination), result.iterations,
@@ -55,13 +67,8 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
                            result.transform(r, 1), result.transform(r, 2), result.transform(r, 3));
   }
   if (const std::optional<AutoReport>& a = result.auto_report; a && !a->candidates.empty()) {
-    out += absl::StrFormat(
-        "auto: %s: %.1f %% of the source within %.1f d of the target's MLS surface (RMSE %.3f d); "
-        "candidate %d of %zu chosen%s\n",
-        a->verified ? "verified" : "NOT VERIFIED (no candidate fits; do not trust the transform)",
-        100.0 * a->verification.inlier_fraction, a->verification.inlier_distance_d,
-        a->verification.rmse_d, a->chosen, a->candidates.size(),
-        a->early_exit ? " (the start verified: no global stage)" : "");
+    out += absl::StrFormat("auto: candidate %d of %zu chosen%s\n", a->chosen, a->candidates.size(),
+                           a->early_exit ? " (the start verified: no global stage)" : "");
     out += absl::StrFormat(
         "auto stages: start %.3f s, global %.3f s (%d feature matches), candidates %.3f s, final "
         "%.3f s\n",
@@ -70,11 +77,14 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
     for (std::size_t k = 0; k < a->candidates.size(); ++k) {
       const AutoCandidate& c = a->candidates[k];
       out += absl::StrFormat(
-          "  candidate %zu %-6s  on surface %5.1f %%  RMSE %7.3f d  %3d its  %6.3f s%s\n", k,
-          CandidateOriginName(c.origin), 100.0 * c.score.inlier_fraction, c.score.rmse_d,
-          c.iterations, c.seconds, static_cast<int>(k) == a->chosen ? "  <- chosen" : "");
+          "  candidate %zu %-6s  %-19s overlap on surface %5.1f %%  RMSE %7.3f d  %3d its  "
+          "%6.3f s%s\n",
+          k, CandidateOriginName(c.origin), VerdictName(c.score.verdict),
+          100.0 * c.score.inlier_fraction, c.score.rmse_d, c.iterations, c.seconds,
+          static_cast<int>(k) == a->chosen ? "  <- chosen" : "");
     }
   }
+  if (result.verification) out += FormatVerification(*result.verification) + "\n";
   if (error) {
     out += absl::StrFormat(
         "against ground truth: RMSE %.4f d (%s at 5 d), rotation error %.4f deg, translation "
@@ -116,6 +126,25 @@ nlohmann::json IterationJson(const IterationReport& r) {
           {"transform", MatrixJson(r.transform)}};
 }
 
+nlohmann::json VerificationJson(const VerificationScore& v) {
+  nlohmann::json direction = nlohmann::json::array();
+  for (int k = 0; k < 6; ++k) direction.push_back(v.worst_direction[k]);
+  return {{"verified", v.verified()},
+          {"verdict", std::string(VerdictName(v.verdict))},
+          {"samples", v.samples},
+          {"covered", v.covered},
+          {"inliers", v.inliers},
+          {"inlier_fraction", v.inlier_fraction},
+          {"explained_fraction", v.explained_fraction},
+          {"rmse_d", v.rmse_d},
+          {"inlier_distance", v.inlier_distance},
+          {"inlier_distance_d", v.inlier_distance_d},
+          {"worst_direction", direction},
+          {"worst_direction_text", v.WorstDirectionText()},
+          {"worst_direction_fraction", v.worst_direction_fraction},
+          {"worst_direction_samples", v.worst_direction_samples}};
+}
+
 nlohmann::json ResultJson(std::string_view method, const RegistrationResult& result,
                           const std::optional<PoseError>& error) {
   nlohmann::json trace = nlohmann::json::array();
@@ -138,14 +167,8 @@ nlohmann::json ResultJson(std::string_view method, const RegistrationResult& res
                         {"optimisation", result.timings.optimisation},
                         {"total", result.timings.total}}},
                       {"trace", trace}};
+  if (result.verification) j["verification"] = VerificationJson(*result.verification);
   if (const std::optional<AutoReport>& a = result.auto_report) {
-    const auto score = [](const VerificationScore& v) {
-      return nlohmann::json{{"samples", v.samples},
-                            {"inliers", v.inliers},
-                            {"inlier_fraction", v.inlier_fraction},
-                            {"rmse_d", v.rmse_d},
-                            {"inlier_distance_d", v.inlier_distance_d}};
-    };
     nlohmann::json candidates = nlohmann::json::array();
     for (const AutoCandidate& c : a->candidates) {
       candidates.push_back({{"origin", std::string(CandidateOriginName(c.origin))},
@@ -153,11 +176,10 @@ nlohmann::json ResultJson(std::string_view method, const RegistrationResult& res
                             {"refined", MatrixJson(c.refined)},
                             {"feature_inliers", c.feature_inliers},
                             {"iterations", c.iterations},
-                            {"score", score(c.score)},
+                            {"score", VerificationJson(c.score)},
                             {"seconds", c.seconds}});
     }
     j["auto"] = {{"verified", a->verified},
-                 {"verification", score(a->verification)},
                  {"chosen", a->chosen},
                  {"early_exit", a->early_exit},
                  {"feature_matches", a->feature_matches},

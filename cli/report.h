@@ -17,6 +17,9 @@ std::string FormatIteration(const IterationReport& report);
 
 // The final summary block (termination, transform, errors against ground truth when known).
 std::string FormatResult(const RegistrationResult& result, const std::optional<PoseError>& error);
+// One line: the verdict and its evidence.
+std::string FormatVerification(const VerificationScore& score);
+nlohmann::json VerificationJson(const VerificationScore& score);
 
 // Progress of many jobs on stderr: a bar redrawn in place on a terminal, plain lines otherwise.
 class ProgressPrinter {

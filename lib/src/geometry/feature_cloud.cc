@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "mlsreg/geometry/sampling.h"
+#include "mlsreg/geometry/voxel_cloud.h"
 
 namespace mlsreg {
 namespace {
@@ -26,6 +27,44 @@ FeatureScale ChooseFeatureScale(const std::vector<Vec3>& points, double d) {
     voxel *= 1.05 * std::sqrt(static_cast<double>(count) / kMaxFeatureSamples);
   }
   return {voxel, kFeatureRadiusPerVoxel * voxel, 2 * kMaxFeatureSamples};
+}
+
+FeatureScale FeatureScaleFor(const std::vector<Vec3>& points, const CloudScales& scales) {
+  double voxel = std::max(scales.working_voxel, kFeatureVoxelSpacings * scales.median_spacing);
+  for (int round = 0; round < kMaxScaleRounds; ++round) {
+    const std::size_t count = VoxelRepresentatives(points, voxel).size();
+    if (count <= kMaxVoxelFeatureSamples) break;
+    voxel *= 1.05 * std::sqrt(static_cast<double>(count) / kMaxVoxelFeatureSamples);
+  }
+  return {voxel, kFeatureRadiusPerVoxel * voxel, kMaxVoxelFeatureSamples};
+}
+
+std::optional<FeatureCloud> BuildVoxelFeatureCloud(const std::vector<Vec3>& points,
+                                                   const FeatureScale& scale,
+                                                   const std::optional<Vec3>& viewpoint,
+                                                   const StopCheck& should_stop, int threads) {
+  VoxelCloud voxels = BuildVoxelCloud(points, scale.voxel, viewpoint, threads);
+  std::vector<std::uint32_t> kept;
+  for (std::uint32_t i = 0; i < voxels.size(); ++i) {
+    if (voxels.valid[i]) kept.push_back(i);
+  }
+  if (kept.size() > scale.max_samples) {
+    const std::vector<std::uint32_t> subset =
+        RandomSubsample(kept.size(), scale.max_samples, kSubsetSeed);
+    for (std::size_t k = 0; k < subset.size(); ++k) kept[k] = kept[subset[k]];
+    kept.resize(subset.size());
+  }
+  FeatureCloud out;
+  out.scale = scale;
+  out.oriented = voxels.oriented;
+  out.points.reserve(kept.size());
+  out.normals.reserve(kept.size());
+  for (std::uint32_t i : kept) {
+    out.points.push_back(voxels.points[i]);
+    out.normals.push_back(voxels.normals[i]);
+  }
+  if (!ComputeFeatures(out, should_stop)) return std::nullopt;
+  return out;
 }
 
 std::optional<FeatureCloud> SampleOrientedPoints(

@@ -6,22 +6,12 @@
 #include <random>
 #include <unordered_map>
 
+#include "voxel_key.h"
+
 namespace mlsreg {
 namespace {
 
-// A voxel of the grid, and the sample nearest its centre so far.
-struct CellKey {
-  std::int64_t x, y, z;
-  bool operator==(const CellKey&) const = default;
-};
-struct CellKeyHash {
-  std::size_t operator()(const CellKey& k) const {
-    std::uint64_t h = static_cast<std::uint64_t>(k.x) * 0x9E3779B97F4A7C15ull;
-    h ^= static_cast<std::uint64_t>(k.y) * 0xC2B2AE3D27D4EB4Full + (h << 6) + (h >> 2);
-    h ^= static_cast<std::uint64_t>(k.z) * 0x165667B19E3779F9ull + (h << 6) + (h >> 2);
-    return static_cast<std::size_t>(h);
-  }
-};
+// The sample nearest a voxel's centre so far.
 struct CellRepresentative {
   std::uint32_t index;
   double distance_squared;
@@ -72,14 +62,11 @@ std::vector<std::uint32_t> RandomSubsample(std::size_t size, std::size_t count,
 }
 
 std::vector<std::uint32_t> VoxelRepresentatives(const std::vector<Vec3>& points, double h) {
-  std::unordered_map<CellKey, CellRepresentative, CellKeyHash> cells;
+  std::unordered_map<internal::VoxelKey, CellRepresentative, internal::VoxelKeyHash> cells;
   cells.reserve(points.size() / 4 + 1);
   const double inv_h = 1.0 / h;
   for (std::uint32_t i = 0; i < points.size(); ++i) {
-    const Vec3 scaled = points[i] * inv_h;
-    const CellKey key{static_cast<std::int64_t>(std::floor(scaled.x())),
-                      static_cast<std::int64_t>(std::floor(scaled.y())),
-                      static_cast<std::int64_t>(std::floor(scaled.z()))};
+    const internal::VoxelKey key = internal::KeyOf(points[i], inv_h);
     const Vec3 centre = (Vec3(key.x, key.y, key.z) + Vec3::Constant(0.5)) * h;
     const double d2 = (points[i] - centre).squaredNorm();
     auto [it, inserted] = cells.try_emplace(key, CellRepresentative{i, d2});

@@ -59,6 +59,10 @@ absl::StatusOr<std::shared_ptr<Target>> Target::BuildMutable(PointCloud cloud,
   if (!(target->sampling_distance_ > 0.0)) {
     return absl::InvalidArgumentError("target has no two distinct points (sampling distance 0)");
   }
+  target->scales_ =
+      MeasureScales(target->cloud_.points, *target->tree_, target->sampling_distance_);
+  target->voxel_cloud_ = BuildVoxelCloud(target->cloud_.points, target->scales_.working_voxel,
+                                         target->cloud_.viewpoint, options.threads);
   if (should_stop && should_stop()) return cancelled();
   target->surface_ = AnalyzeSurface(target->cloud_.points, *target->tree_,
                                     options.analysis_radius_d * target->sampling_distance_,
@@ -80,11 +84,9 @@ absl::StatusOr<std::shared_ptr<Target>> Target::BuildMutable(PointCloud cloud,
     if (patches.ok()) target->mls_patches_ = *std::move(patches);
   }
   if (options.build_global_features) {
-    const FeatureScale scale =
-        ChooseFeatureScale(target->cloud_.points, target->sampling_distance_);
-    std::optional<FeatureCloud> features =
-        BuildFeatureCloud(target->cloud_.points, *target->tree_, &target->surface_, 0.0,
-                          target->cloud_.viewpoint, scale, should_stop);
+    std::optional<FeatureCloud> features = BuildVoxelFeatureCloud(
+        target->cloud_.points, FeatureScaleFor(target->cloud_.points, target->scales_),
+        target->cloud_.viewpoint, should_stop, options.threads);
     if (!features) return cancelled();
     target->features_ = *std::move(features);
   }
@@ -110,7 +112,7 @@ std::size_t Target::MemoryBytes() const {
          surface_.curvature.capacity() * sizeof(double) + surface_.valid.capacity() +
          tree_->MemoryBytes() + (grid_ ? grid_->MemoryBytes() : 0) +
          (mls_patches_ ? mls_patches_->MemoryBytes() : 0) +
-         (features_ ? features_->MemoryBytes() : 0) + sizeof(Target);
+         (features_ ? features_->MemoryBytes() : 0) + voxel_cloud_.MemoryBytes() + sizeof(Target);
 }
 
 }  // namespace mlsreg

@@ -88,10 +88,6 @@ double NearShare(const Target& target, const std::vector<Vec3>& points, const Ma
   return static_cast<double>(near) / static_cast<double>(points.size());
 }
 
-double NoiseOf(const Target& a, const Target& b) {
-  return std::max(a.noise().sigma_d, b.noise().sigma_d);
-}
-
 std::vector<std::pair<int, int>> CandidatePairs(PairPolicy policy, int n) {
   std::vector<std::pair<int, int>> pairs;
   if (policy == PairPolicy::kOverlap) {
@@ -319,10 +315,16 @@ absl::StatusOr<AlignResult> AlignTargets(const std::vector<std::shared_ptr<const
             }
             edge.registration = *std::move(registered);
             edge.relative = edge.registration.transform;
-            edge.overlap = VerifyAlignment(*targets[i], samples[j].points, samples[j].normals,
-                                           samples[j].oriented, edge.relative,
-                                           NoiseOf(*targets[i], *targets[j]))
-                               .inlier_fraction;
+            const VoxelCloud voxels = BuildVoxelCloud(
+                targets[j]->points(), targets[i]->voxel_cloud().voxel, std::nullopt);
+            const double d_i = targets[i]->sampling_distance();
+            edge.verification =
+                edge.registration.verification
+                    ? *edge.registration.verification
+                    : VerifyAlignment(*targets[i], voxels.points, voxels.normals, edge.relative,
+                                      CombinedNoise(targets[i]->noise().sigma_d * d_i,
+                                                    targets[j]->noise().sigma_d * d_i));
+            edge.overlap = edge.verification.explained_fraction;
             const Information info = EdgeInformation(*targets[i], samples[j], edge.relative, d);
             edge.information = info.matrix;
             edge.correspondences = info.correspondences;
@@ -344,9 +346,9 @@ absl::StatusOr<AlignResult> AlignTargets(const std::vector<std::shared_ptr<const
   mean_correspondences = std::max(1.0, mean_correspondences / result.edges.size());
   std::vector<PoseGraphEdge> graph;
   for (const AlignEdge& e : result.edges) {
-    // A registration that leaves less of the source on the target's surface than the pairing
-    // asked for (or found too few correspondences) did not find the overlap: not trusted.
-    const bool trusted = e.overlap >= options.min_overlap &&
+    // A registration that does not verify, or that found too few correspondences, is not
+    // trusted.
+    const bool trusted = e.verification.verified() &&
                          e.registration.termination != Termination::kTooFewCorrespondences;
     graph.push_back({e.from, e.to, e.relative,
                      e.information * (e.correspondences / mean_correspondences), trusted});

@@ -1,11 +1,17 @@
-// Method auto: registration from any start. MLS-SICP runs from the caller's start; when its
-// result does not verify against the target's MLS surface, global candidates from FPFH matches
-// are refined cheaply by MLS-SICP, the best verified one is refined fully, and the result says
-// whether it verified.
+// Method auto: registration from any start.
+//   1. The voxel clouds are aligned from the caller's start (coarse_alignment.h), then MLS-SICP
+//      refines on the full-resolution target. A result that verifies and explains enough of the
+//      source is returned.
+//   2. Otherwise global candidates come from FPFH matches between the voxel clouds at the
+//      feature scale (registration/global_candidates.h); each is aligned on the voxel clouds and
+//      verified, and the start competes with them.
+//   3. The best candidates are refined by MLS-SICP in turn until one verifies.
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <optional>
 
+#include "coarse_alignment.h"
 #include "method_runners.h"
 #include "mlsreg/geometry/feature_cloud.h"
 #include "mlsreg/registration/global_candidates.h"
@@ -14,18 +20,15 @@
 namespace mlsreg::internal {
 namespace {
 
-// Two scores whose inlier fractions differ by less than this are ranked by their RMSE.
-constexpr double kFractionTie = 0.02;
 // RANSAC's inlier distance: Open3D's 1.5 voxels, or 3 noise sigmas when that is larger.
 constexpr double kInlierDistancePerVoxel = 1.5;
 constexpr double kInlierDistancePerNoise = 3.0;
-
-bool Better(const VerificationScore& a, const VerificationScore& b) {
-  if (std::abs(a.inlier_fraction - b.inlier_fraction) >= kFractionTie) {
-    return a.inlier_fraction > b.inlier_fraction;
-  }
-  return a.rmse_d < b.rmse_d;
-}
+// Coarse alignment ends at a capture range of this many working voxels, and a level converges
+// when no voxel moves more than this share of a voxel.
+constexpr double kFinalCaptureVoxels = 2.0;
+constexpr double kCoarseConvergenceVoxels = 0.02;
+// Candidates that get the full refinement when none before them verified.
+constexpr int kRefinedCandidates = 3;
 
 // The caller's callbacks with every report stamped with its stage and candidate.
 RegistrationCallbacks StampedCallbacks(const RegistrationCallbacks& callbacks, Stage stage,
@@ -43,18 +46,19 @@ RegistrationCallbacks StampedCallbacks(const RegistrationCallbacks& callbacks, S
   return out;
 }
 
+void Stamp(RegistrationResult& result, Stage stage, int candidate) {
+  for (IterationReport& report : result.trace) {
+    report.stage = stage;
+    report.candidate = candidate;
+  }
+}
+
 class AutoRegistration {
  public:
   explicit AutoRegistration(const RegistrationProblem& problem)
-      : problem_(problem),
-        target_(*problem.target),
-        params_(problem.options->automatic),
-        d_(problem.target->sampling_distance()) {
+      : problem_(problem), target_(*problem.target), params_(problem.options->automatic) {
     full_ = *problem.options;
     full_.method = Method::kMlsSicp;
-    cheap_ = full_;
-    cheap_.max_iterations = params_.candidate_iterations;
-    cheap_.mls.projection = MlsProjectionKind::kPatches;
     base_ = problem;
     if (!base_.source_tree) {
       own_source_tree_.emplace(problem.source->points);
@@ -63,106 +67,147 @@ class AutoRegistration {
   }
 
   absl::StatusOr<RegistrationResult> Run() {
-    // Stage 1: MLS-SICP from the caller's start.
+    // Stage 1: from the caller's start.
     Clock::time_point phase = Clock::now();
-    absl::StatusOr<RegistrationResult> start = Refine(problem_.initial, full_, Stage::kStart, 0, 0);
-    if (!start.ok() || start->termination == Termination::kCancelled) return Finish(start);
-    const FeatureScale scale =
-        target_.features() ? target_.features()->scale : ChooseFeatureScale(target_.points(), d_);
-    samples_ =
-        SampleOrientedPoints(problem_.source->points, *base_.source_tree, nullptr,
-                             target_.options().analysis_radius_d * d_, problem_.source->viewpoint,
-                             scale, problem_.callbacks->should_stop);
-    if (!samples_) return Cancelled(*std::move(start));
-    report_.candidates.push_back({CandidateOrigin::kStart, problem_.initial, start->transform, 0,
-                                  start->iterations, Verify(start->transform), Seconds(phase)});
+    source_voxels_ = BuildVoxelCloud(problem_.source->points, target_.voxel_cloud().voxel,
+                                     problem_.source->viewpoint, problem_.threads);
+    RegistrationResult start =
+        AlignCoarse(problem_.initial, Stage::kCoarse, 0, 0, problem_.options->max_iterations);
+    if (start.termination == Termination::kCancelled) return Finish(std::move(start));
+    absl::StatusOr<RegistrationResult> fine =
+        Refine(start.transform, Stage::kStart, 0, start.iterations);
+    if (!fine.ok()) return fine.status();
+    AppendPhase(start, *std::move(fine));
+    if (start.termination == Termination::kCancelled) return Finish(std::move(start));
+    report_.candidates.push_back({CandidateOrigin::kStart, problem_.initial, start.transform, 0,
+                                  start.iterations, Verify(start.transform), Seconds(phase)});
     report_.timings.start = Seconds(phase);
-    if (report_.candidates[0].score.inlier_fraction >= params_.accept_fraction) {
+    best_score_ = report_.candidates[0].score;
+    if (best_score_.verified() && best_score_.explained_fraction >= params_.accept_fraction) {
       report_.early_exit = true;
-      return Finish(start);
+      return Finish(std::move(start));
     }
 
-    // Stage 2: global candidates from feature matches.
+    // Stage 2: global candidates from feature matches, each aligned on the voxel clouds.
     phase = Clock::now();
     const StopCheck& should_stop = problem_.callbacks->should_stop;
-    if (!ComputeFeatures(*samples_, should_stop)) return Cancelled(*std::move(start));
     const FeatureCloud* target_features = target_.features();
     std::optional<FeatureCloud> own_target_features;
     if (!target_features) {  // a target built without them
-      own_target_features = BuildFeatureCloud(target_.points(), target_.tree(), &target_.surface(),
-                                              0.0, target_.cloud().viewpoint, scale, should_stop);
-      if (!own_target_features) return Cancelled(*std::move(start));
+      own_target_features = BuildVoxelFeatureCloud(
+          target_.points(), FeatureScaleFor(target_.points(), target_.scales()),
+          target_.cloud().viewpoint, should_stop, problem_.threads);
+      if (!own_target_features) return Cancelled(std::move(start));
       target_features = &*own_target_features;
     }
+    const std::optional<FeatureCloud> source_features =
+        BuildVoxelFeatureCloud(problem_.source->points, target_features->scale,
+                               problem_.source->viewpoint, should_stop, problem_.threads);
+    if (!source_features) return Cancelled(std::move(start));
     GlobalCandidateOptions global_options;
     global_options.max_candidates = params_.candidates;
-    global_options.inlier_distance = std::max(kInlierDistancePerVoxel * scale.voxel,
-                                              kInlierDistancePerNoise * problem_.noise_d * d_);
+    global_options.inlier_distance =
+        std::max(kInlierDistancePerVoxel * target_features->scale.voxel,
+                 kInlierDistancePerNoise * problem_.noise);
     global_options.seed = problem_.options->seed;
     const GlobalCandidates global =
-        FindGlobalCandidates(*samples_, *target_features, global_options, should_stop);
-    if (global.stopped) return Cancelled(*std::move(start));
+        FindGlobalCandidates(*source_features, *target_features, global_options, should_stop);
+    if (global.stopped) return Cancelled(std::move(start));
     report_.feature_matches = global.matches;
     report_.timings.global = Seconds(phase);
     ReportGlobalStage(global);
 
-    // Stage 3: each candidate refined cheaply and verified; the start competes with its result.
     phase = Clock::now();
-    std::vector<RegistrationResult> refined;
+    std::vector<RegistrationResult> aligned;
     for (std::size_t k = 0; k < global.candidates.size(); ++k) {
       const Clock::time_point t = Clock::now();
       const int index = static_cast<int>(k) + 1;
-      absl::StatusOr<RegistrationResult> r =
-          Refine(global.candidates[k].transform, cheap_, Stage::kCandidate, index, 0);
-      if (!r.ok()) return r.status();
-      if (r->termination == Termination::kCancelled) return Cancelled(*std::move(start));
+      RegistrationResult r = AlignCoarse(global.candidates[k].transform, Stage::kCandidate, index,
+                                         0, params_.candidate_iterations);
+      if (r.termination == Termination::kCancelled) return Cancelled(std::move(start));
       report_.candidates.push_back({CandidateOrigin::kGlobal, global.candidates[k].transform,
-                                    r->transform, global.candidates[k].inliers, r->iterations,
-                                    Verify(r->transform), Seconds(t)});
-      refined.push_back(*std::move(r));
+                                    r.transform, global.candidates[k].inliers, r.iterations,
+                                    Verify(r.transform), Seconds(t)});
+      aligned.push_back(std::move(r));
     }
     report_.timings.candidates = Seconds(phase);
-    int best = 0;
-    for (int k = 1; k < static_cast<int>(report_.candidates.size()); ++k) {
-      if (Better(report_.candidates[k].score, report_.candidates[best].score)) best = k;
-    }
-    report_.chosen = best;
-    if (best == 0) return Finish(start);
 
-    // Stage 4: the winner refined fully (MLS-SICP with every default) from its cheap result.
+    // Stage 3: the best candidates refined fully, best first, until one verifies.
     phase = Clock::now();
-    RegistrationResult winner = std::move(refined[best - 1]);
-    absl::StatusOr<RegistrationResult> fine =
-        Refine(winner.transform, full_, Stage::kFinal, best, winner.iterations);
-    if (!fine.ok()) return fine.status();
-    AppendPhase(winner, *std::move(fine));
+    std::vector<int> order(report_.candidates.size());
+    std::iota(order.begin(), order.end(), 0);
+    std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+      return BetterScore(report_.candidates[a].score, report_.candidates[b].score);
+    });
+    std::optional<RegistrationResult> best;
+    int refined = 0;
+    for (int k : order) {
+      if (k == 0) {  // the start: already refined fully
+        if (!best) {
+          report_.chosen = 0;
+          best_score_ = report_.candidates[0].score;
+          best = start;
+        }
+        continue;
+      }
+      if (refined++ == kRefinedCandidates) break;
+      RegistrationResult winner = std::move(aligned[k - 1]);
+      absl::StatusOr<RegistrationResult> full =
+          Refine(winner.transform, Stage::kFinal, k, winner.iterations);
+      if (!full.ok()) return full.status();
+      AppendPhase(winner, *std::move(full));
+      if (winner.termination == Termination::kCancelled) return Cancelled(std::move(winner));
+      const VerificationScore score = Verify(winner.transform);
+      if (!best || BetterScore(score, best_score_)) {
+        report_.chosen = k;
+        best_score_ = score;
+        best = std::move(winner);
+      }
+      if (score.verified()) break;
+    }
     report_.timings.final = Seconds(phase);
-    return Finish(std::move(winner));
+    return Finish(std::move(*best));
   }
 
  private:
-  absl::StatusOr<RegistrationResult> Refine(const Matrix4& start,
-                                            const RegistrationOptions& options, Stage stage,
-                                            int candidate, int iteration_offset) {
+  // The voxel clouds aligned from `start`, the capture range starting at what the start leaves
+  // between them (never fails; may be cancelled).
+  RegistrationResult AlignCoarse(const Matrix4& start, Stage stage, int candidate,
+                                 int iteration_offset, int max_iterations) {
     const RegistrationCallbacks callbacks = StampedCallbacks(*problem_.callbacks, stage, candidate);
     RegistrationProblem problem = base_;
     problem.initial = start;
-    problem.options = &options;
+    problem.callbacks = &callbacks;
+    problem.iteration_offset = iteration_offset;
+    const VoxelCloud& target_voxels = target_.voxel_cloud();
+    CoarseSchedule schedule;
+    schedule.final_capture = kFinalCaptureVoxels * target_voxels.voxel;
+    schedule.start_capture = StartCapture(target_voxels, source_voxels_, start,
+                                          schedule.final_capture, target_.scales().extent);
+    schedule.convergence = kCoarseConvergenceVoxels * target_voxels.voxel;
+    schedule.max_iterations = max_iterations;
+    RegistrationResult result = AlignVoxelClouds(problem, target_voxels, source_voxels_, schedule);
+    Stamp(result, stage, candidate);
+    return result;
+  }
+
+  // MLS-SICP with every default from `start`.
+  absl::StatusOr<RegistrationResult> Refine(const Matrix4& start, Stage stage, int candidate,
+                                            int iteration_offset) {
+    const RegistrationCallbacks callbacks = StampedCallbacks(*problem_.callbacks, stage, candidate);
+    RegistrationProblem problem = base_;
+    problem.initial = start;
+    problem.options = &full_;
     problem.callbacks = &callbacks;
     problem.iteration_offset = iteration_offset;
     absl::StatusOr<RegistrationResult> result = RunSparseIcp(problem);
-    if (result.ok()) {
-      for (IterationReport& report : result->trace) {
-        report.stage = stage;
-        report.candidate = candidate;
-      }
-    }
+    if (result.ok()) Stamp(*result, stage, candidate);
     return result;
   }
 
   VerificationScore Verify(const Matrix4& transform) const {
-    return VerifyAlignment(target_, samples_->points, samples_->normals, samples_->oriented,
-                           transform, problem_.noise_d);
+    return VerifyAlignment(target_, source_voxels_.points, source_voxels_.normals, transform,
+                           problem_.noise);
   }
 
   // One report for the global stage (iteration 0): the best candidate's pose.
@@ -183,25 +228,23 @@ class AutoRegistration {
     return Finish(std::move(result));
   }
 
-  absl::StatusOr<RegistrationResult> Finish(absl::StatusOr<RegistrationResult> result) {
-    if (!result.ok()) return result;
-    if (!report_.candidates.empty() && result->termination != Termination::kCancelled) {
-      const AutoCandidate& chosen = report_.candidates[report_.chosen];
-      report_.verification = report_.chosen == 0 ? chosen.score : Verify(result->transform);
-      report_.verified = IsVerified(report_.verification, params_.verified_fraction);
+  absl::StatusOr<RegistrationResult> Finish(RegistrationResult result) {
+    if (!report_.candidates.empty() && result.termination != Termination::kCancelled) {
+      report_.verification = best_score_;
+      report_.verified = report_.verification.verified();
     }
-    result->auto_report = std::move(report_);
+    result.auto_report = std::move(report_);
     return result;
   }
 
   const RegistrationProblem& problem_;
   const Target& target_;
   const AutoParams& params_;
-  const double d_;
-  RegistrationOptions full_, cheap_;
+  RegistrationOptions full_;
   RegistrationProblem base_;
   std::optional<KdTree> own_source_tree_;
-  std::optional<FeatureCloud> samples_;
+  VoxelCloud source_voxels_;
+  VerificationScore best_score_;  // of the result so far
   AutoReport report_;
 };
 

@@ -30,6 +30,7 @@ struct RegistrationProblem {
   const KdTree* source_tree = nullptr;  // the source's index when Register built one already
   int threads = 1;                      // ExecutionOptions::threads
   double noise_d = 0.0;  // the clouds' estimated noise (the larger), units of d; 0: unknown
+  double noise = 0.0;    // their combined noise sigma (CombinedNoise), absolute; 0: unknown
 };
 
 namespace internal {

@@ -190,14 +190,14 @@ std::vector<ParameterSpec> MakeTable() {
           "auto: global candidate poses refined when the start does not verify"),
       Row<&O::automatic, &AutoParams::accept_fraction>(
           "auto.accept_fraction", "auto-accept", "auto_accept_fraction", automatic, kClosed(0, 1),
-          "auto: keep the start's result without a global stage when this share of the source "
-          "lies on the target's surface"),
-      Row<&O::automatic, &AutoParams::verified_fraction>(
-          "auto.verified_fraction", "auto-verified", "auto_verified_fraction", automatic,
-          kClosed(0, 1), "auto: the share of the source on the surface that counts as verified"),
+          "auto: keep the start's verified result without a global stage when it explains this "
+          "share of the source"),
       Row<&O::automatic, &AutoParams::candidate_iterations>(
           "auto.candidate_iterations", "auto-candidate-iterations", "auto_candidate_iterations",
-          automatic, kClosed(1, 1000), "auto: ICP iterations of each candidate's first refinement"),
+          automatic, kClosed(1, 1000),
+          "auto: iterations of each candidate's voxel-cloud alignment"),
+      Row<&O::verify>("verify", "no-verify", "verify", common, kAny,
+                      "skip verifying the result against the target (every method verifies)"),
   };
 }
 

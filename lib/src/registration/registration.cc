@@ -6,6 +6,7 @@
 #include "method_runners.h"
 #include "mlsreg/geometry/mls_radius.h"
 #include "mlsreg/geometry/noise_estimate.h"
+#include "mlsreg/registration/verification.h"
 
 namespace mlsreg {
 
@@ -32,6 +33,7 @@ const EnumNames& StageNames() {
       {static_cast<int>(Stage::kGlobal), "global", "GLOBAL"},
       {static_cast<int>(Stage::kCandidate), "candidate", "CANDIDATE"},
       {static_cast<int>(Stage::kFinal), "final", "FINAL"},
+      {static_cast<int>(Stage::kCoarse), "coarse", "COARSE"},
   };
   static constexpr EnumNames kNames{"Stage", "STAGE_", kValues};
   return kNames;
@@ -93,14 +95,15 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
     return OrganisedTargetRequired(options.method);
   }
 
-  // An automatic MLS radius, from the noise of the target (estimated when it was built) and of
-  // the source (estimated here, on the index the method then reuses).
+  // The source's noise, estimated on the index the method then reuses: it sets an automatic MLS
+  // radius (with the target's, estimated when it was built) and the verification's band.
   RegistrationOptions resolved = options;
   double noise_seconds = 0.0;
   std::optional<KdTree> source_tree;
   double source_noise_d = 0.0;
   const bool reads_mls = (method.parameter_groups & kMlsParameters) != 0;
-  if (reads_mls && !options.mls.radius_d) {
+  const bool auto_radius = reads_mls && !options.mls.radius_d;
+  if (auto_radius || options.verify || options.method == Method::kAuto) {
     const internal::Clock::time_point phase = internal::Clock::now();
     source_tree.emplace(source.points);
     const NoiseEstimate noise =
@@ -113,27 +116,37 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
       return cancelled;
     }
     source_noise_d = noise.sigma_d;
+    noise_seconds = internal::Seconds(phase);
+  }
+  if (auto_radius) {
     resolved.mls.radius_d = AutoMlsRadiusD(std::max(target.noise().sigma_d, source_noise_d));
     // Only methods that match by MLS use the patches (ST-SICP smooths by Algorithm 1).
     if (method.make_finder == &internal::MakeMlsFinder) {
       resolved.mls.radius_d = SnapToTargetPatches(target, options, *resolved.mls.radius_d);
     }
-    noise_seconds = internal::Seconds(phase);
   }
 
+  const double d = target.sampling_distance();
   RegistrationProblem problem{&target, &source, initial, &resolved, &callbacks, start};
   problem.source_tree = source_tree ? &*source_tree : nullptr;
   problem.noise_d = std::max(target.noise().sigma_d, source_noise_d);
+  problem.noise = CombinedNoise(target.noise().sigma_d * d, source_noise_d * d);
   problem.threads = std::max(1, execution.threads);
   absl::StatusOr<RegistrationResult> result = method.run(problem);
   if (!result.ok()) return result;
+  result->timings.preprocessing += noise_seconds;
+  result->target_noise_d = target.noise().sigma_d;
+  result->source_noise_d = source_noise_d;
   if (reads_mls) {
     result->mls_radius_d = *resolved.mls.radius_d;
     result->mls_radius_auto = !options.mls.radius_d.has_value();
-    if (result->mls_radius_auto) {
-      result->target_noise_d = target.noise().sigma_d;
-      result->source_noise_d = source_noise_d;
-      result->timings.preprocessing += noise_seconds;
+  }
+  if (options.verify && result->termination != Termination::kCancelled) {
+    if (result->auto_report) {
+      result->verification = result->auto_report->verification;
+    } else {
+      result->verification =
+          VerifyPose(target, source, result->transform, source_noise_d, problem.threads);
     }
   }
   result->timings.total = internal::Seconds(start);

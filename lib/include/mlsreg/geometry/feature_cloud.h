@@ -9,6 +9,7 @@
 
 #include "mlsreg/core/point_cloud.h"
 #include "mlsreg/core/stop_check.h"
+#include "mlsreg/geometry/cloud_scales.h"
 #include "mlsreg/geometry/fpfh.h"
 #include "mlsreg/geometry/kd_tree.h"
 #include "mlsreg/geometry/surface_analysis.h"
@@ -58,6 +59,23 @@ bool ComputeFeatures(FeatureCloud& cloud, const StopCheck& should_stop = {});
 // cloud larger than the target may give more than kMaxFeatureSamples samples; a seeded random
 // subset of them (scale.max_samples) is kept. Samples without a valid normal are dropped. nullopt
 // when `should_stop` said stop.
+// The scale of global registration for a target sampled as `scales` says: voxels of its working
+// voxel, at least kFeatureVoxelSpacings median spacings (features need several samples per
+// voxel), grown until the target gives at most kMaxVoxelFeatureSamples of them; features over
+// kFeatureRadiusPerVoxel voxels. A KITTI scan gets 0.75-1 m voxels, an object scan about 3 d.
+inline constexpr double kFeatureVoxelSpacings = 3.0;
+inline constexpr std::size_t kMaxVoxelFeatureSamples = 5000;
+FeatureScale FeatureScaleFor(const std::vector<Vec3>& points, const CloudScales& scales);
+
+// The features of `points` at `scale` on their voxel cloud (voxel centroids, normals from their
+// nearest voxel neighbours, oriented toward `viewpoint` when given), a seeded random subset of
+// scale.max_samples when there are more. nullopt when `should_stop` said stop.
+std::optional<FeatureCloud> BuildVoxelFeatureCloud(const std::vector<Vec3>& points,
+                                                   const FeatureScale& scale,
+                                                   const std::optional<Vec3>& viewpoint,
+                                                   const StopCheck& should_stop = {},
+                                                   int threads = 1);
+
 std::optional<FeatureCloud> BuildFeatureCloud(const std::vector<Vec3>& points, const KdTree& tree,
                                               const SurfaceProperties* surface,
                                               double normal_radius,

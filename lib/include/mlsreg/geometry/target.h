@@ -6,12 +6,14 @@
 #include "absl/status/statusor.h"
 #include "mlsreg/core/point_cloud.h"
 #include "mlsreg/core/stop_check.h"
+#include "mlsreg/geometry/cloud_scales.h"
 #include "mlsreg/geometry/depth_grid.h"
 #include "mlsreg/geometry/feature_cloud.h"
 #include "mlsreg/geometry/kd_tree.h"
 #include "mlsreg/geometry/mls_patches.h"
 #include "mlsreg/geometry/noise_estimate.h"
 #include "mlsreg/geometry/surface_analysis.h"
+#include "mlsreg/geometry/voxel_cloud.h"
 
 namespace mlsreg {
 
@@ -55,6 +57,10 @@ class Target {
   const DepthGrid* grid() const { return grid_ ? &*grid_ : nullptr; }
   // Mean nearest-neighbour distance d (paper Eq. 11).
   double sampling_distance() const { return sampling_distance_; }
+  // How the cloud is sampled: spacing percentiles, extent, the working voxel.
+  const CloudScales& scales() const { return scales_; }
+  // The cloud at its working voxel (scales().working_voxel), with normals and an index.
+  const VoxelCloud& voxel_cloud() const { return voxel_cloud_; }
   const TargetOptions& options() const { return options_; }
   double build_seconds() const { return build_seconds_; }
   // The noise of the cloud, estimated once at build time (EstimateNoise).
@@ -81,6 +87,8 @@ class Target {
   SurfaceProperties surface_;
   std::optional<DepthGrid> grid_;
   double sampling_distance_ = 0.0;
+  CloudScales scales_;
+  VoxelCloud voxel_cloud_;
   TargetOptions options_;
   double build_seconds_ = 0.0;
   NoiseEstimate noise_;

@@ -35,8 +35,8 @@ struct AlignOptions {
   // frame already, e.g. from a turntable's angles or a robot's odometry applied upstream).
   std::vector<Matrix4> initial_poses;
   PairPolicy pairs = PairPolicy::kLoop;
-  // Every policy: an edge whose registration leaves less than `min_overlap` of its source on the
-  // target's MLS surface is not trusted (left out of the pose graph unless it is needed).
+  // Every policy: an edge whose registration does not verify is not trusted (left out of the
+  // pose graph unless it is needed).
   // kOverlap: a pair is registered when at least `min_overlap` of one scan's samples lie within
   // `overlap_distance_d` of the other scan under the initial poses. Generous, as the poses are
   // rough: a 10 degree error moves the rim of a scan 230 d across by 20 d.
@@ -57,11 +57,12 @@ struct AlignEdge {
   int from = 0, to = 0;  // the registration of scan `to` (source) onto scan `from` (target)
   Matrix4 relative = Matrix4::Identity();  // maps `to` into `from`'s frame
   RegistrationResult registration;
+  VerificationScore verification;  // of the edge's result (registration/verification.h)
   double overlap = 0.0;     // share of `to`'s samples on `from`'s surface after registration
   int correspondences = 0;  // behind the information matrix
   Matrix6 information = Matrix6::Zero();
   double residual_before_d = 0.0, residual_after_d = 0.0;  // pose_graph.h
-  bool trusted = true;  // its registration verified (overlap >= min_overlap)
+  bool trusted = true;  // its registration verified
   bool kept = true;     // used by the final solve
 };
 

@@ -33,17 +33,16 @@ struct GicpParams {
   double max_distance_d = 8.0;    // correspondence distance cap (Table 2: 8 d)
 };
 
-// Method `auto`: MLS-SICP from the caller's start, and when that does not verify, from global
-// candidates (registration/global_candidates.h), the winner chosen by verification
-// (registration/verification.h). Thresholds chosen on the tuning split (docs/evaluation.md).
+// Method `auto`: the voxel clouds aligned and MLS-SICP from the caller's start; when that does
+// not verify, from global candidates (registration/global_candidates.h), the winner chosen by
+// verification (registration/verification.h).
 struct AutoParams {
-  int candidates = 8;  // global poses refined when the start does not verify
-  // The start's MLS-SICP result is kept without a global stage when at least this share of the
-  // source lies on the target's MLS surface.
+  int candidates = 8;  // global poses tried when the start does not verify
+  // The start's result is kept without a global stage when it verifies and explains at least
+  // this share of the source (a wrong pose on a self-similar object can verify on the part it
+  // covers; the global stage then finds the pose that explains more).
   double accept_fraction = 0.5;
-  // The result is "verified" when at least this share of the source lies on the surface.
-  double verified_fraction = 0.3;
-  int candidate_iterations = 15;  // the cheap refinement of each candidate (patches only)
+  int candidate_iterations = 30;  // the voxel-cloud alignment of each candidate
 };
 
 struct FgrParams {
@@ -126,6 +125,9 @@ struct RegistrationOptions {
   FgrParams fgr;
   AutoParams automatic;         // method auto
   int min_correspondences = 6;  // fewer accepted correspondences end the registration
+  // Verify the result against the target (registration/verification.h) whatever the method:
+  // RegistrationResult::verification says whether it can be trusted.
+  bool verify = true;
 };
 
 // Upper bounds that keep one registration's time and memory bounded by its parameters (see

@@ -21,9 +21,11 @@ enum class Stage {
   kGlobal,     // auto: global candidates from feature matches (one report, iteration 0)
   kCandidate,  // auto: the cheap refinement of a global candidate (IterationReport::candidate)
   kFinal,      // auto: the full refinement of the best candidate
+  kCoarse,     // auto: voxel clouds aligned at the working resolution (registration/scales.h)
 };
-std::string_view StageName(Stage stage);  // "single", "start", "global", "candidate", "final"
-const EnumNames& StageNames();            // wire enum "Stage"
+// "single", "start", "global", "candidate", "final", "coarse"
+std::string_view StageName(Stage stage);
+const EnumNames& StageNames();  // wire enum "Stage"
 
 // Streamed once per ICP iteration.
 struct IterationReport {
@@ -84,9 +86,8 @@ struct AutoStageTimings {
 struct AutoReport {
   std::vector<AutoCandidate> candidates;  // [0] is the start
   int chosen = 0;                         // index of the winner
-  // The result explains enough of the source, tightly enough (IsVerified with
-  // AutoParams::verified_fraction). When false the transform is the best found but must not be
-  // trusted: no candidate fits.
+  // The result's verification says it is right (VerificationScore::verified). When false the
+  // transform is the best found but must not be trusted: no candidate fits.
   bool verified = false;
   VerificationScore verification;  // of the result
   bool early_exit = false;         // the start verified well enough: no global stage ran
@@ -103,14 +104,17 @@ struct RegistrationResult {
   PhaseTimings timings;
   double sampling_distance = 0.0;  // the target's d, the unit of every *_d field
   int num_samples = 0;
-  // Methods that read the MLS parameters: the support radius used (units of d), whether it was
-  // chosen automatically, and the noise estimates it was chosen from (units of d; 0 when not
-  // estimated: an explicit radius needs none).
+  // Methods that read the MLS parameters: the support radius used (units of d) and whether it
+  // was chosen automatically. The noise estimates of both clouds (units of d; 0 when not
+  // estimated: an explicit radius without verification needs none).
   double mls_radius_d = 0.0;
   bool mls_radius_auto = false;
   double target_noise_d = 0.0;
   double source_noise_d = 0.0;
   std::optional<AutoReport> auto_report;  // method auto only
+  // Whether the result can be trusted (RegistrationOptions::verify; any method). Unset when not
+  // asked for or cancelled.
+  std::optional<VerificationScore> verification;
 };
 
 struct RegistrationCallbacks {

@@ -1,52 +1,113 @@
-// Verification: how well a pose lays a source onto the target's MLS surface, the score that
-// picks among candidate poses and says whether a registration can be trusted.
+// Verification: whether a pose lays the source on the target, the verdict every registration
+// reports and the score that picks among candidate poses.
+//
+// The source is sampled on its voxel cloud at the target's working voxel (samples follow the
+// surface, not a LiDAR's rings). Each sample, moved by the pose, is
+//   - covered when the target has data near it (a voxel of the target within a few working
+//     voxels): only covered samples can confirm or contradict the pose, the rest lie outside the
+//     overlap;
+//   - an inlier when it also lies within the band of the target's surface (its MLS projection,
+//     or the plane of its nearest sample where no MLS patch reaches). The band is 3 sigma of the
+//     noise expected where the sample lands: the clouds' measured noise, or the spread of the
+//     target's samples about their voxel's plane there when larger (a LiDAR's noise grows with
+//     range), and at least one median spacing of the target.
+// A right pose explains most of the overlap, its inliers' residuals concentrate inside the band,
+// and it explains the overlap equally in every direction of motion. The last test is what
+// catches a pose slid along a road or a corridor: the ground and the facades still agree, but the
+// few samples that constrain the slide (poles, cars, building ends) do not. Each of the six
+// directions of rigid motion (eigen-directions of the point-to-plane information of the covered
+// samples) is judged by the samples whose residual it moves most; a direction the samples barely
+// constrain cannot be verified at all.
 #pragma once
 
+#include <span>
+#include <string_view>
 #include <vector>
 
+#include "mlsreg/core/enum_names.h"
 #include "mlsreg/core/transform.h"
 #include "mlsreg/geometry/target.h"
 
 namespace mlsreg {
 
 struct VerificationOptions {
-  // A sample agrees when its MLS projection onto the target lies within
-  // max(inlier_distance_d, inlier_noise_factor * noise) * d of it...
-  double inlier_distance_d = 3.0;
-  double inlier_noise_factor = 3.0;
-  // ...and its normal and the surface's make an angle with cosine at least this (the sign counts
-  // when both clouds' normals are oriented toward their scanners).
-  double min_normal_dot = 0.7;
+  double band_per_noise = 3.0;          // the band is this many combined noise sigmas...
+  double min_band_spacings = 1.0;       // ...and at least this many median spacings of the target
+  double coverage_voxels = 3.0;         // covered: a target voxel within this many working voxels
+  double min_inlier_fraction = 0.5;     // of the covered samples
+  double min_explained_fraction = 0.1;  // of all samples
+  double min_covered_samples = 30;
+  // A uniform spread of residuals over the band has an RMS of 0.58 band; a real fit's (Gaussian,
+  // even with the noise underestimated twofold) at most about 0.45.
+  double max_rms_per_band = 0.5;
+  // The worst direction's inlier fraction must be at least this share of the overall one...
+  double min_direction_ratio = 0.5;
+  // ...among the samples whose residual a unit motion along it moves by at least this share of
+  // the top percentile's (rotations in units of the samples' RMS radius about their centre)...
+  double direction_sensitivity = 0.5;
+  // ...and a direction whose information per covered sample is below this (as if fewer than 1 %
+  // of the samples faced it squarely) is unconstrained: the pose cannot be verified along it.
+  double min_direction_strength = 0.01;
 };
+
+enum class Verdict {
+  kVerified,
+  kTooLittleOverlap,    // too few covered samples
+  kLowAgreement,        // too small a share of the overlap lies on the surface
+  kDiffuseResiduals,    // the inliers' residuals spread over the band (chance overlap)
+  kDirectionDisagrees,  // the samples that constrain one direction of motion disagree
+  kUnconstrained,       // the data do not constrain one direction of motion
+};
+std::string_view VerdictName(Verdict verdict);  // "verified", "too_little_overlap", ...
+const EnumNames& VerdictNames();                // wire enum "Verdict"
 
 struct VerificationScore {
-  int samples = 0;                 // source samples tried
-  int inliers = 0;                 // samples that agree
-  double inlier_fraction = 0.0;    // inliers / samples: the score (share of the source explained)
-  double rmse_d = 0.0;             // RMSE of the agreeing samples' distances, units of d
-  double inlier_distance_d = 0.0;  // the distance within which a sample agrees, units of d
+  int samples = 0;                  // source samples tried
+  int covered = 0;                  // samples with target data near them
+  int inliers = 0;                  // covered samples on the surface
+  double inlier_fraction = 0.0;     // inliers / covered: the share of the overlap explained
+  double explained_fraction = 0.0;  // inliers / samples
+  double rmse_d = 0.0;              // RMSE of the inliers' distances, units of d
+  double inlier_distance_d = 0.0;   // the band (the inliers' mean where it varies), units of d
+  double inlier_distance = 0.0;     // the same, absolute
+  // The direction whose constraining samples agree least: its inlier fraction, how many
+  // samples constrain it, and the direction (rotation axis scaled by its share, translation).
+  double worst_direction_fraction = 0.0;
+  int worst_direction_samples = 0;
+  double worst_direction_strength = 0.0;  // its information per covered sample
+  Eigen::Matrix<double, 6, 1> worst_direction = Eigen::Matrix<double, 6, 1>::Zero();
+  Verdict verdict = Verdict::kTooLittleOverlap;
+
+  bool verified() const { return verdict == Verdict::kVerified; }
+  // "translation along (0.99, 0.11, 0.02)" or "rotation about (...)".
+  std::string WorstDirectionText() const;
 };
 
-// Residuals of a real fit concentrate near the surface; a chance overlap of two different shapes
-// spreads them across the band (a uniform spread has an RMS of 0.58 of its half-width).
-inline constexpr double kMaxVerifiedRmsePerInlierDistance = 0.4;
+// The noise sigma (absolute) the band is built from: both clouds' estimates combined.
+double CombinedNoise(double target_sigma, double source_sigma);
 
-// Whether a score says the pose is right: at least `min_inlier_fraction` of the source agrees,
-// and the agreeing samples' RMSE is at most kMaxVerifiedRmsePerInlierDistance of the band.
-bool IsVerified(const VerificationScore& score, double min_inlier_fraction);
+// Scores `transform` (source to target) by source samples `points` with unit `normals` (a zero
+// normal: the sample takes no part in the directional test). `noise` is CombinedNoise of the two
+// clouds. Thread-safe.
+VerificationScore VerifyAlignment(const Target& target, std::span<const Vec3> points,
+                                  std::span<const Vec3> normals, const Matrix4& transform,
+                                  double noise, const VerificationOptions& options = {});
+
+// Verifies `transform` (source to target) as Register verifies a result: the source's noise is
+// estimated and its voxel cloud at the target's working voxel scored.
+VerificationScore VerifyPose(const Target& target, const PointCloud& source,
+                             const Matrix4& transform, int threads = 1);
+// The same with the source's noise already known (units of the target's d).
+VerificationScore VerifyPose(const Target& target, const PointCloud& source,
+                             const Matrix4& transform, double source_noise_d, int threads);
+
+// Whether `a` explains the source better than `b` (ranks candidate poses): the verdict first,
+// then the inliers, then the RMSE.
+bool BetterScore(const VerificationScore& a, const VerificationScore& b);
 
 // The distance of each of `points` (in the target's frame) to the target's MLS surface: to its
 // projection by the target's MLS patches, or to the nearest target sample where no patch reaches
 // (or the target has none). Absolute units.
 std::vector<double> DistancesToMlsSurface(const Target& target, const std::vector<Vec3>& points);
-
-// Scores `transform` (source to target) by the source samples `points` with unit `normals`
-// (oriented toward the source's scanner when `oriented`). The target's MLS patches give the
-// surface; a target without them is scored against its nearest samples. `noise_d` is the
-// clouds' estimated noise (units of d). Allocation-free, thread-safe.
-VerificationScore VerifyAlignment(const Target& target, const std::vector<Vec3>& points,
-                                  const std::vector<Vec3>& normals, bool oriented,
-                                  const Matrix4& transform, double noise_d,
-                                  const VerificationOptions& options = {});
 
 }  // namespace mlsreg

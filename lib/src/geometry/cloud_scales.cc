@@ -1,0 +1,61 @@
+#include "mlsreg/geometry/cloud_scales.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "mlsreg/geometry/sampling.h"
+
+namespace mlsreg {
+namespace {
+
+constexpr std::size_t kSpacingSamples = 20'000;
+constexpr std::uint64_t kSpacingSeed = 0x5ca1e;
+
+double Percentile(std::vector<double>& values, double q) {
+  if (values.empty()) return 0.0;
+  const auto k = static_cast<std::ptrdiff_t>(q * static_cast<double>(values.size() - 1));
+  std::nth_element(values.begin(), values.begin() + k, values.end());
+  return values[static_cast<std::size_t>(k)];
+}
+
+}  // namespace
+
+CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree, double d) {
+  CloudScales scales;
+  scales.mean_spacing = d;
+  if (points.empty()) return scales;
+  const std::vector<std::uint32_t> sample =
+      RandomSubsample(points.size(), kSpacingSamples, kSpacingSeed);
+  std::vector<double> spacing;
+  spacing.reserve(sample.size());
+  constexpr std::size_t kK = 4;  // skip exact duplicates, as SamplingDistance does
+  std::uint32_t index[kK];
+  double d2[kK];
+  for (std::uint32_t i : sample) {
+    const std::size_t found = tree.Knn(points[i], kK, index, d2);
+    for (std::size_t j = 0; j < found; ++j) {
+      if (d2[j] > 0.0) {
+        spacing.push_back(std::sqrt(d2[j]));
+        break;
+      }
+    }
+  }
+  scales.median_spacing = Percentile(spacing, 0.5);
+  scales.spacing_p90 = Percentile(spacing, 0.9);
+
+  std::vector<double> coordinate(sample.size());
+  Vec3 median;
+  for (int axis = 0; axis < 3; ++axis) {
+    for (std::size_t k = 0; k < sample.size(); ++k) coordinate[k] = points[sample[k]][axis];
+    median[axis] = Percentile(coordinate, 0.5);
+  }
+  std::vector<double> radius(sample.size());
+  for (std::size_t k = 0; k < sample.size(); ++k) radius[k] = (points[sample[k]] - median).norm();
+  scales.extent = 2.0 * Percentile(radius, 0.95);
+  scales.working_voxel = std::max(kWorkingVoxelPerExtent * scales.extent,
+                                  kMinWorkingVoxelPerSpacing * scales.median_spacing);
+  if (!(scales.working_voxel > 0.0)) scales.working_voxel = d;
+  return scales;
+}
+
+}  // namespace mlsreg

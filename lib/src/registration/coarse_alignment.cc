@@ -1,0 +1,121 @@
+#include "coarse_alignment.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "icp_loop.h"
+#include "mlsreg/solvers/rigid_motion.h"
+
+namespace mlsreg::internal {
+namespace {
+
+// The start's capture range covers this share of the source's distances to the target: most
+// of the misalignment, without the non-overlap's far tail.
+constexpr double kStartCapturePercentile = 0.75;
+// Geman-McClure scale per capture range.
+constexpr double kKernelPerCapture = 1.0 / 3.0;
+
+using Matrix6 = Eigen::Matrix<double, 6, 6>;
+using Vector6 = Eigen::Matrix<double, 6, 1>;
+
+class VoxelPlaneStep final : public IcpStep {
+ public:
+  VoxelPlaneStep(const VoxelCloud& target, const VoxelCloud& source, const CoarseSchedule& schedule,
+                 double d)
+      : target_(target),
+        samples_(source.points),
+        capture_(schedule.start_capture),
+        final_capture_(schedule.final_capture),
+        d_(d) {}
+
+  bool Match(const RigidTransform& pose, IterationReport& report) override {
+    h_.setZero();
+    g_.setZero();
+    const double capture_squared = capture_ * capture_;
+    const double kernel_squared = std::pow(kKernelPerCapture * capture_, 2);
+    double sum_squared = 0.0;
+    for (const Vec3& s : samples_) {
+      const Vec3 x = pose * s;
+      const Neighbor nn = target_.tree->Nearest(x);
+      if (nn.distance_squared > capture_squared) {
+        ++report.counts.rejected_distance;
+        continue;
+      }
+      if (!target_.valid[nn.index]) {
+        ++report.counts.invalid;
+        continue;
+      }
+      const Vec3& n = target_.normals[nn.index];
+      const double r = n.dot(x - target_.points[nn.index]);
+      const double k = kernel_squared / (kernel_squared + r * r);
+      const double w = k * k;
+      Vector6 j;
+      j.head<3>() = x.cross(n);
+      j.tail<3>() = n;
+      h_.noalias() += w * j * j.transpose();
+      g_.noalias() += w * r * j;
+      sum_squared += r * r;
+      ++report.counts.matched;
+    }
+    SetRmse(report, sum_squared, d_);
+    return true;
+  }
+
+  std::optional<RigidTransform> Solve(IterationReport&) override {
+    const Vector6 delta = SolveConstrainedStep(h_, -g_);
+    if (!delta.allFinite()) return std::nullopt;
+    return TwistIncrement(delta);
+  }
+
+  std::span<const Vec3> moved_samples() const override { return {}; }  // kStepSize rule only
+  std::span<const Vec3> samples() const override { return samples_; }
+  bool coarse() const override { return capture_ > final_capture_; }
+  void Refine() override { capture_ = std::max(final_capture_, 0.5 * capture_); }
+  double capture() const { return capture_; }
+
+ private:
+  const VoxelCloud& target_;
+  const std::vector<Vec3>& samples_;
+  double capture_, final_capture_;
+  double d_;
+  Matrix6 h_;
+  Vector6 g_;
+};
+
+}  // namespace
+
+double StartCapture(const VoxelCloud& target, const VoxelCloud& source, const Matrix4& initial,
+                    double final_capture, double target_extent) {
+  if (source.points.empty() || target.points.empty()) return final_capture;
+  const RigidTransform pose(Orthonormalize(initial));
+  std::vector<double> distances;
+  distances.reserve(source.points.size());
+  for (const Vec3& s : source.points) {
+    distances.push_back(std::sqrt(target.tree->Nearest(pose * s).distance_squared));
+  }
+  const auto k = static_cast<std::ptrdiff_t>(kStartCapturePercentile * (distances.size() - 1));
+  std::nth_element(distances.begin(), distances.begin() + k, distances.end());
+  return std::clamp(distances[static_cast<std::size_t>(k)], final_capture,
+                    std::max(final_capture, 0.5 * target_extent));
+}
+
+RegistrationResult AlignVoxelClouds(const RegistrationProblem& problem, const VoxelCloud& target,
+                                    const VoxelCloud& source, const CoarseSchedule& schedule) {
+  RegistrationResult result;
+  result.sampling_distance = problem.target->sampling_distance();
+  result.num_samples = static_cast<int>(source.size());
+  VoxelPlaneStep step(target, source, schedule, result.sampling_distance);
+  LoopSettings settings;
+  settings.rule = StopRule::kStepSize;
+  settings.max_iterations = schedule.max_iterations;
+  settings.min_correspondences = problem.options->min_correspondences;
+  settings.convergence = schedule.convergence;
+  settings.coarse_convergence = schedule.convergence;
+  settings.iteration_offset = problem.iteration_offset;
+  RunIcpLoop(step, RigidTransform(Orthonormalize(problem.initial)), settings, *problem.callbacks,
+             problem.start, result);
+  result.timings.total = Seconds(problem.start);
+  return result;
+}
+
+}  // namespace mlsreg::internal
