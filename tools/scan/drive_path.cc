@@ -54,7 +54,7 @@ absl::Status ValidateDriveOptions(const DriveOptions& options) {
   }
   if (!(options.min_step_m > 0.0 && options.min_step_m <= options.max_step_m &&
         options.max_step_m <= 5.0)) {
-    return absl::InvalidArgumentError(absl::StrCat("--step: ", options.min_step_m, "-",
+    return absl::InvalidArgumentError(absl::StrCat("--step-m: ", options.min_step_m, "-",
                                                    options.max_step_m,
                                                    " m per frame (need 0 < min <= max <= 5)"));
   }

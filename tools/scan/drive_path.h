@@ -26,7 +26,7 @@ struct DriveOptions {
   std::uint64_t seed = 1;
 };
 
-// InvalidArgument naming the flag: --frames (0 or >= 2), the steps (0 < min <= max <= 5 m).
+// InvalidArgument naming the flag: --frames (0 or >= 2), --step-m (0 < min <= max <= 5 m).
 absl::Status ValidateDriveOptions(const DriveOptions& options);
 
 // In the street's right-hand lane from 15 m after its start to 15 m before its end (or for

@@ -60,9 +60,7 @@ absl::StatusOr<LidarScene> MakeMeshLidarScene(TriangleMesh mesh, const DriveOpti
   return result;
 }
 
-absl::StatusOr<LidarProtocolSummary> WriteLidarProtocol(
-    const LidarScene& scene, const std::string& name, const std::string& out_dir,
-    const LidarProtocolOptions& options, const std::function<void(const std::string&)>& progress) {
+absl::Status ValidateLidarProtocolOptions(const LidarProtocolOptions& options) {
   LidarOptions lidar = options.lidar;
   lidar.range_noise_sigma_m = 0.0;
   if (absl::Status s = ValidateLidarOptions(lidar); !s.ok()) return s;
@@ -72,9 +70,30 @@ absl::StatusOr<LidarProtocolSummary> WriteLidarProtocol(
       return absl::InvalidArgumentError(absl::StrCat("--noise-m: ", sigma, " m is not in [0, 1]"));
     }
   }
+  if (options.pair_gaps_m.empty()) return absl::InvalidArgumentError("--pair-gaps: no gap");
+  for (double gap : options.pair_gaps_m) {
+    if (!(gap > 0.0)) {
+      return absl::InvalidArgumentError(absl::StrCat("--pair-gaps: ", gap, " m is not > 0"));
+    }
+  }
+  if (options.pairs < 1) {
+    return absl::InvalidArgumentError(absl::StrCat("--pairs: ", options.pairs, " (>= 1)"));
+  }
   if (options.movers < 0) {
     return absl::InvalidArgumentError(absl::StrCat("--movers: ", options.movers, " (>= 0)"));
   }
+  if (options.threads < 1) {
+    return absl::InvalidArgumentError(absl::StrCat("--threads: ", options.threads, " (>= 1)"));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<LidarProtocolSummary> WriteLidarProtocol(
+    const LidarScene& scene, const std::string& name, const std::string& out_dir,
+    const LidarProtocolOptions& options, const std::function<void(const std::string&)>& progress) {
+  if (absl::Status s = ValidateLidarProtocolOptions(options); !s.ok()) return s;
+  LidarOptions lidar = options.lidar;
+  lidar.range_noise_sigma_m = 0.0;
   const std::vector<Matrix4>& bases = scene.drive.base_to_world;
   if (bases.size() < 2) return absl::FailedPreconditionError("the drive has fewer than 2 frames");
   const std::vector<double> travelled = TravelledDistances(scene.drive);

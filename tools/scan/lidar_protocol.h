@@ -42,6 +42,11 @@ struct LidarProtocolOptions {
   int threads = 1;
 };
 
+// InvalidArgument naming the flag of the first bad option: the scanner's (ValidateLidarOptions),
+// --noise-m (some level, each 0-1 m), --pair-gaps (some, each > 0), --pairs (>= 1), --movers
+// (>= 0), --threads (>= 1). Whether the gaps fit the drive is WriteLidarProtocol's to say.
+absl::Status ValidateLidarProtocolOptions(const LidarProtocolOptions& options);
+
 struct LidarProtocolSummary {
   double drive_length_m = 0.0;
   int frames = 0;  // of the drive

@@ -36,14 +36,14 @@ absl::Status ValidateLidarOptions(const LidarOptions& o) {
     return absl::InvalidArgumentError(
         absl::StrCat("--azimuth-step: ", o.azimuth_step_deg, " degrees is not in 0.1-0.4"));
   }
-  if (!(o.min_range_m > 0.0 && o.min_range_m < o.max_range_m)) {
-    return absl::InvalidArgumentError(absl::StrCat("--min-range: ", o.min_range_m,
-                                                   " m must be > 0 and below --max-range (",
-                                                   o.max_range_m, " m)"));
-  }
-  if (!(o.max_range_m <= 1000.0)) {
+  if (!(o.min_range_m > 0.0)) {
     return absl::InvalidArgumentError(
-        absl::StrCat("--max-range: ", o.max_range_m, " m is not in (--min-range, 1000]"));
+        absl::StrCat("--min-range: ", o.min_range_m, " m must be > 0"));
+  }
+  if (!(o.max_range_m > o.min_range_m && o.max_range_m <= 1000.0)) {
+    return absl::InvalidArgumentError(absl::StrCat("--max-range: ", o.max_range_m,
+                                                   " m is not in (--min-range = ", o.min_range_m,
+                                                   " m, 1000 m]"));
   }
   if (!(o.range_noise_sigma_m >= 0.0 && o.range_noise_sigma_m <= 1.0)) {
     return absl::InvalidArgumentError(

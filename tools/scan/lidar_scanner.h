@@ -45,8 +45,9 @@ struct LidarOptions {
 };
 
 // InvalidArgument naming the CLI flag of the first bad value: --beams (1-256), --azimuth-step
-// (0.1-0.4), --min-range / --max-range (0 < min < max <= 1000), --noise-m (>= 0), elevations
-// in (-90, 90) and strictly decreasing, dropout in [0, 1), sensor height >= 0.
+// (0.1-0.4), --min-range (> 0), --max-range (above the minimum, at most 1000 m), --noise-m
+// (0-1 m), --dropout ([0, 1)), --sensor-height (0-100 m); elevations in (-90, 90) and strictly
+// decreasing; the ego body's roof below the sensor.
 absl::Status ValidateLidarOptions(const LidarOptions& options);
 
 // The beams' elevations (degrees, top first).
