@@ -76,6 +76,19 @@ TEST(StreetSceneTest, TheCurbIsAStepOfFifteenCentimetres) {
       EXPECT_NEAR(walk - road, 0.15, 1e-4);
     }
   }
+  // Across a side street the curb is gone.
+  int side_streets = 0;
+  for (std::uint64_t seed = 1; seed <= 6; ++seed) {
+    const StreetLayout other = MakeStreetLayout({StreetKind::kStreet, seed});
+    for (const auto& [start, end] : other.cross_streets) {
+      ++side_streets;
+      EXPECT_GE(end - start, 10.0);
+      const double mid = 0.5 * (start + end), edge = other.road_half_width_m;
+      EXPECT_NEAR(other.SurfaceHeight(mid, edge + 1e-6), other.SurfaceHeight(mid, edge - 1e-6),
+                  1e-4);
+    }
+  }
+  EXPECT_GT(side_streets, 0);
   // World(s, u) is u metres to the left of the centreline, whatever the bend.
   for (double s : {10.0, 100.0, 200.0}) {
     const Vec3 center = layout.World(s, 0.0, 0.0), left = layout.World(s, 3.0, 0.0);

@@ -32,6 +32,14 @@ void AddGround(const StreetLayout& layout, TriangleMesh& mesh) {
     s_steps.push_back(s);
   }
   s_steps.push_back(layout.length_m + kGroundMargin);
+  // The curb ramps down to the road over 0.3 m at a side street's edges.
+  for (const auto& [start, end] : layout.cross_streets) {
+    s_steps.insert(s_steps.end(), {start, start + 0.3, end - 0.3, end});
+  }
+  std::sort(s_steps.begin(), s_steps.end());
+  s_steps.erase(std::unique(s_steps.begin(), s_steps.end(),
+                            [](double a, double b) { return std::abs(a - b) < 1e-6; }),
+                s_steps.end());
   const double w = layout.road_half_width_m;
   std::vector<double> road_u;
   const int half_cells = static_cast<int>(std::ceil(w / 1.0));
@@ -73,6 +81,7 @@ void AddGround(const StreetLayout& layout, TriangleMesh& mesh) {
     const double u = side * w, outside = side * (w + 1e-9);
     for (std::size_t i = 0; i + 1 < s_steps.size(); ++i) {
       const double s0 = s_steps[i], s1 = s_steps[i + 1];
+      if (layout.CurbHeight(s0) == 0.0 && layout.CurbHeight(s1) == 0.0) continue;
       builder.AddQuad(layout.World(s0, u, layout.SurfaceHeight(s0, u)),
                       layout.World(s1, u, layout.SurfaceHeight(s1, u)),
                       layout.World(s1, u, layout.SurfaceHeight(s1, outside)),
@@ -301,6 +310,10 @@ void AddParkedCars(const StreetLayout& layout, double side, double occupancy, Se
       continue;
     }
     const CarShape& car = kCarShapes[random.Below(std::size(kCarShapes))];
+    if (layout.CrossesSideStreet(s, s + car.length, 3.0)) {  // no parking in the junction
+      s += car.length;
+      continue;
+    }
     const double center = s + 0.5 * car.length;
     const double u = lane + random.Uniform(-0.15, 0.15);
     // Parked in the direction of its side's traffic (right-hand traffic).
@@ -359,16 +372,29 @@ void BuildStreet(const StreetLayout& layout, SeededRandom& random, TriangleMesh&
       b.window_pitch = random.Uniform(2.4, 4.0);
       b.windows = random.Chance(0.9);
       b.shop_front = random.Chance(0.3);
-      AddBuilding(layout, b, random, mesh);
-      if (b.offset - w > 5.0 && random.Chance(leafiness)) {  // a front yard
-        AddShrub(layout, random.Uniform(b.s0 + 1.0, b.s1 - 1.0),
-                 side * random.Uniform(w + 3.0, b.offset - 1.0), random, mesh);
+      // A side street ends the block: the building stops short of it, the next starts after.
+      double next = b.s1;
+      for (const auto& [start, end] : layout.cross_streets) {
+        if (b.s1 > start - 1.0 && b.s0 < end + 1.0) {
+          b.s1 = std::min(b.s1, start - 1.0);
+          next = end + 1.0;
+        }
       }
-      s = b.s1;
+      if (b.s1 - b.s0 >= 6.0) {
+        AddBuilding(layout, b, random, mesh);
+        if (b.offset - w > 5.0 && random.Chance(leafiness)) {  // a front yard
+          AddShrub(layout, random.Uniform(b.s0 + 1.0, b.s1 - 1.0),
+                   side * random.Uniform(w + 3.0, b.offset - 1.0), random, mesh);
+        }
+      }
+      s = next;
+      if (next != b.s1) continue;
       if (random.Chance(gap_chance)) {
         const double gap = random.Uniform(3.0, 18.0);
         const double u0 = side * random.Uniform(w + 2.0, nearest_facade + 1.0);
-        if (random.Chance(0.5)) {
+        if (layout.CrossesSideStreet(s, s + gap, 1.0)) {
+          // nothing in the side street
+        } else if (random.Chance(0.5)) {
           const bool hedge = random.Chance(0.5);
           const double thickness = hedge ? random.Uniform(0.6, 1.0) : 0.3;
           AddGroundBox(layout, s + 0.2, s + gap - 0.2, std::min(u0, u0 + side * thickness),
@@ -385,8 +411,10 @@ void BuildStreet(const StreetLayout& layout, SeededRandom& random, TriangleMesh&
     for (int k = 0; k < back; ++k) {
       const double s0 = random.Uniform(-kBuildingMargin, layout.length_m + kBuildingMargin);
       const double near = random.Uniform(26.0, 45.0), far = near + random.Uniform(10.0, 20.0);
-      AddGroundBox(layout, s0, s0 + random.Uniform(15.0, 40.0), std::min(side * near, side * far),
-                   std::max(side * near, side * far), random.Uniform(8.0, 30.0), mesh);
+      const double s1 = s0 + random.Uniform(15.0, 40.0), height = random.Uniform(8.0, 30.0);
+      if (layout.CrossesSideStreet(s0, s1, 2.0)) continue;
+      AddGroundBox(layout, s0, s1, std::min(side * near, side * far),
+                   std::max(side * near, side * far), height, mesh);
     }
     AddParkedCars(layout, side, parking, random, mesh);
     // Lamp posts along the curb.
@@ -400,7 +428,8 @@ void BuildStreet(const StreetLayout& layout, SeededRandom& random, TriangleMesh&
       const double stretch = random.Uniform(30.0, 80.0);
       if (random.Chance(leafiness)) {
         for (double p = t; p < t + stretch; p += random.Uniform(7.0, 12.0)) {
-          AddTree(layout, p, side * (w + random.Uniform(1.1, 1.6)), 1.0, random, mesh);
+          const double u = side * (w + random.Uniform(1.1, 1.6));
+          if (!layout.CrossesSideStreet(p, p, 3.0)) AddTree(layout, p, u, 1.0, random, mesh);
         }
       }
       t += stretch + random.Uniform(10.0, 40.0);
@@ -410,15 +439,17 @@ void BuildStreet(const StreetLayout& layout, SeededRandom& random, TriangleMesh&
   const int signs = static_cast<int>(layout.length_m / 30.0);
   for (int k = 0; k < signs; ++k) {
     const double side = random.Chance(0.5) ? 1.0 : -1.0;
-    AddSignPole(layout, random.Uniform(-20.0, layout.length_m + 20.0), side * (w + 0.35), random,
-                mesh);
+    const double s = random.Uniform(-20.0, layout.length_m + 20.0);
+    if (!layout.CrossesSideStreet(s, s, 1.0))
+      AddSignPole(layout, s, side * (w + 0.35), random, mesh);
   }
   const int bins = static_cast<int>(layout.length_m / 40.0);
   for (int k = 0; k < bins; ++k) {
     const double side = random.Chance(0.5) ? 1.0 : -1.0;
     const double s = random.Uniform(-20.0, layout.length_m + 20.0);
-    const double u = side * (w + random.Uniform(0.5, 1.0));
-    AddGroundBox(layout, s, s + 0.6, u - 0.3, u + 0.3, random.Uniform(0.9, 1.2), mesh);
+    const double u = side * (w + random.Uniform(0.5, 1.0)), height = random.Uniform(0.9, 1.2);
+    if (layout.CrossesSideStreet(s, s + 0.6, 1.0)) continue;
+    AddGroundBox(layout, s, s + 0.6, u - 0.3, u + 0.3, height, mesh);
   }
 }
 
@@ -536,7 +567,18 @@ double StreetLayout::SurfaceHeight(double s, double u) const {
   const double along = TerrainHeight(s, 0.0);
   if (std::abs(u) <= w) return along - camber * std::abs(u);
   const double edge = std::copysign(w, u);
-  return along - camber * w + curb_height_m + TerrainHeight(s, u) - TerrainHeight(s, edge);
+  return along - camber * w + CurbHeight(s) + TerrainHeight(s, u) - TerrainHeight(s, edge);
+}
+
+double StreetLayout::CurbHeight(double s) const {
+  return CrossesSideStreet(s, s) ? 0.0 : curb_height_m;
+}
+
+bool StreetLayout::CrossesSideStreet(double s0, double s1, double margin) const {
+  for (const auto& [start, end] : cross_streets) {
+    if (s1 > start - margin && s0 < end + margin) return true;
+  }
+  return false;
 }
 
 StreetLayout MakeStreetLayout(const StreetSceneOptions& options) {
@@ -568,6 +610,16 @@ StreetLayout MakeStreetLayout(const StreetSceneOptions& options) {
     layout.bend_length_m = std::max(random.Uniform(60.0, 110.0), 130.0 * angle);
     layout.bend_start_m =
         random.Uniform(60.0, std::max(61.0, layout.length_m - layout.bend_length_m - 40.0));
+  }
+  if (options.kind == StreetKind::kStreet) {
+    const int side_streets = static_cast<int>(random.Below(3));
+    for (int k = 0; k < side_streets; ++k) {
+      const double width = random.Uniform(10.0, 16.0);
+      const double start = random.Uniform(40.0, layout.length_m - 40.0 - width);
+      if (!layout.CrossesSideStreet(start, start + width, 20.0)) {
+        layout.cross_streets.push_back({start, start + width});
+      }
+    }
   }
   layout.slope = random.Uniform(-0.02, 0.02);
   for (int k = 0; k < 3; ++k) {
