@@ -78,7 +78,7 @@ Drive DriveAlongStreet(const StreetLayout& layout, const DriveOptions& options) 
   Drive drive;
   const double end = layout.length_m - 15.0;
   double s = 15.0;
-  for (int frame = 0; options.frames == 0 ? s <= end : frame < options.frames; ++frame) {
+  for (int frame = 0; s <= end && (options.frames == 0 || frame < options.frames); ++frame) {
     const double u = lateral(s);
     // Pitch over the wheelbase, roll over the track.
     const Vec3 forward =
@@ -115,7 +115,7 @@ absl::StatusOr<Drive> DriveThroughMesh(const TriangleMesh& mesh, const RayCaster
   Drive drive;
   const double end = hi[axis] - 0.05 * length;
   double along = lo[axis] + 0.05 * length;
-  for (int frame = 0; options.frames == 0 ? along <= end : frame < options.frames; ++frame) {
+  for (int frame = 0; along <= end && (options.frames == 0 || frame < options.frames); ++frame) {
     Vec3 position = center;
     position[axis] = along;
     // The lowest surface below: follow the ray down through every hit.

@@ -21,7 +21,7 @@ struct Drive {
 };
 
 struct DriveOptions {
-  int frames = 0;                             // 0: as many as the street (or mesh) has room for
+  int frames = 0;  // at most this many (0: as many as the street or mesh has room for)
   double min_step_m = 0.7, max_step_m = 1.5;  // travelled per frame (the speed varies smoothly)
   std::uint64_t seed = 1;
 };

@@ -238,7 +238,8 @@ int main(int argc, char** argv) {
           ->capture_default_str(),
       app.add_option("--dropout", l.dropout_probability, "probability of losing a return")
           ->capture_default_str(),
-      app.add_option("--frames", run.drive.frames, "frames of the drive (0: the whole street)")
+      app.add_option("--frames", run.drive.frames,
+                     "at most this many frames of the drive (0: the whole street)")
           ->capture_default_str(),
       app.add_option("--step-m", steps, "MIN,MAX metres travelled per frame")
           ->delimiter(',')
