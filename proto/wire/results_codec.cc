@@ -22,10 +22,36 @@ void ToProto(const VerificationScore& s, v1::VerificationScore* out) {
   out->set_inlier_fraction(s.inlier_fraction);
   out->set_rmse_d(s.rmse_d);
   out->set_inlier_distance_d(s.inlier_distance_d);
+  out->set_verdict(
+      static_cast<v1::Verdict>(EnumToWire(VerdictNames(), static_cast<int>(s.verdict))));
+  out->set_covered(s.covered);
+  out->set_explained_fraction(s.explained_fraction);
+  out->set_inlier_distance(s.inlier_distance);
+  for (int k = 0; k < 6; ++k) out->add_worst_direction(s.worst_direction[k]);
+  out->set_worst_direction_fraction(s.worst_direction_fraction);
+  out->set_worst_direction_samples(s.worst_direction_samples);
+  out->set_worst_direction_strength(s.worst_direction_strength);
 }
 
 VerificationScore FromProto(const v1::VerificationScore& p) {
-  return {p.samples(), p.inliers(), p.inlier_fraction(), p.rmse_d(), p.inlier_distance_d()};
+  VerificationScore s;
+  s.samples = p.samples();
+  s.inliers = p.inliers();
+  s.inlier_fraction = p.inlier_fraction();
+  s.rmse_d = p.rmse_d();
+  s.inlier_distance_d = p.inlier_distance_d();
+  s.verdict = EnumFromWire(VerdictNames(), p.verdict(), Verdict::kTooLittleOverlap, "verdict")
+                  .value_or(Verdict::kTooLittleOverlap);
+  s.covered = p.covered();
+  s.explained_fraction = p.explained_fraction();
+  s.inlier_distance = p.inlier_distance();
+  for (int k = 0; k < 6 && k < p.worst_direction_size(); ++k) {
+    s.worst_direction[k] = p.worst_direction(k);
+  }
+  s.worst_direction_fraction = p.worst_direction_fraction();
+  s.worst_direction_samples = p.worst_direction_samples();
+  s.worst_direction_strength = p.worst_direction_strength();
+  return s;
 }
 
 void ToProto(const AutoReport& r, v1::AutoReport* out) {
@@ -129,6 +155,7 @@ void ToProto(const RegistrationResult& r, v1::Result* out) {
   out->set_target_noise_sigma_d(r.target_noise_d);
   out->set_source_noise_sigma_d(r.source_noise_d);
   if (r.auto_report) ToProto(*r.auto_report, out->mutable_auto_report());
+  if (r.verification) ToProto(*r.verification, out->mutable_verification());
 }
 
 RegistrationResult FromProto(const v1::Result& p) {
@@ -149,6 +176,7 @@ RegistrationResult FromProto(const v1::Result& p) {
   r.target_noise_d = p.target_noise_sigma_d();
   r.source_noise_d = p.source_noise_sigma_d();
   if (p.has_auto_report()) r.auto_report = FromProto(p.auto_report());
+  if (p.has_verification()) r.verification = FromProto(p.verification());
   return r;
 }
 

@@ -92,6 +92,7 @@ TEST(ParameterTableTest, EnumTablesMatchTheWireEnums) {
   ExpectEnumMatchesWire(TerminationNames());
   ExpectEnumMatchesWire(StageNames());
   ExpectEnumMatchesWire(CandidateOriginNames());
+  ExpectEnumMatchesWire(VerdictNames());
 }
 
 TEST(ParameterTableTest, MethodTableRowsAreCompleteAndNamesParse) {

@@ -125,8 +125,9 @@ TEST_F(RegistrationServiceTest, AutoFromAHalfTurnStreamsItsStagesAndReportsItsCa
   for (const v1::Progress* p : outcome.progress()) {
     if (stages.empty() || stages.back() != p->stage()) stages.push_back(p->stage());
   }
-  ASSERT_GE(stages.size(), 3u);
-  EXPECT_EQ(stages.front(), v1::STAGE_START);
+  ASSERT_GE(stages.size(), 4u);
+  EXPECT_EQ(stages[0], v1::STAGE_COARSE);
+  EXPECT_EQ(stages[1], v1::STAGE_START);
   EXPECT_NE(std::find(stages.begin(), stages.end(), v1::STAGE_GLOBAL), stages.end());
   EXPECT_EQ(stages.back(), v1::STAGE_FINAL);
 

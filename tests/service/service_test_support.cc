@@ -174,6 +174,7 @@ v1::GetStatsResponse Stats(const Client& client) {
 
 RegistrationOptions QuickOptions() {
   RegistrationOptions options;
+  options.method = Method::kMlsSicp;  // one ICP loop: iteration counts are exact
   options.num_samples = 500;
   options.max_iterations = 30;
   return options;
@@ -181,6 +182,7 @@ RegistrationOptions QuickOptions() {
 
 RegistrationOptions EndlessOptions() {
   RegistrationOptions options;
+  options.method = Method::kMlsSicp;
   options.num_samples = 2000;
   options.max_iterations = 100'000;
   options.convergence_d = 0.0;  // nothing ever moves less than 0: never converges

@@ -154,6 +154,7 @@ TEST(RegistrationTest, CoarsePhaseFiltersFollowTheirPolicy) {
   ASSERT_TRUE(noisy_target.ok());
   const Matrix4 initial = RandomPerturbation(10.0, 10.0 * d, Vec3::Zero(), 6) * pair.truth;
   RegistrationOptions options;
+  options.method = Method::kMlsSicp;
   options.mls.radius_d = 8.0;
   auto run = [&] {
     auto r = Register(**noisy_target, pair.source, initial, options);
@@ -188,6 +189,7 @@ TEST(RegistrationTest, ObserverSeesEveryIterationAndCancelStopsWithinOne) {
   const double d = pair.target->sampling_distance();
   const Matrix4 initial = RandomPerturbation(5.0, 5.0 * d, Vec3::Zero(), 6) * pair.truth;
   RegistrationOptions options;
+  options.method = Method::kMlsSicp;
   options.convergence_d = 0.0;  // never converge: run until cancelled
   options.stall_d = 0.0;
   options.stall_noise_fraction = 0.0;
@@ -272,10 +274,11 @@ TEST(TargetTest, RejectsTooSmallAndNonFiniteClouds) {
 
 // The automatic radius follows the noise: the source carries 2 d of noise (along z, close to the
 // normal of the gentle test surface), so r = 4 sigma = 8 d; noise-free it is the 5 d floor; an
-// explicit radius is used as given, with no estimate.
+// explicit radius is used as given, with no estimate when nothing else needs one.
 TEST(AutoRadiusTest, ARegistrationAtTwoDOfNoisePicksEightD) {
   const SyntheticPair noisy = MakePair(2.0);
-  RegistrationOptions options;  // mls-sicp, radius auto
+  RegistrationOptions options;
+  options.method = Method::kMlsSicp;  // radius auto
   auto result = Register(*noisy.target, noisy.source, noisy.truth, options);
   ASSERT_TRUE(result.ok()) << result.status();
   EXPECT_TRUE(result->mls_radius_auto);
@@ -289,11 +292,13 @@ TEST(AutoRadiusTest, ARegistrationAtTwoDOfNoisePicksEightD) {
   EXPECT_EQ(floor->mls_radius_d, kMinAutoMlsRadiusD);
 
   options.mls.radius_d = 6.5;
+  options.verify = false;  // the verification's band needs the source's noise too
   auto given = Register(*noisy.target, noisy.source, noisy.truth, options);
   ASSERT_TRUE(given.ok());
   EXPECT_FALSE(given->mls_radius_auto);
   EXPECT_EQ(given->mls_radius_d, 6.5);
   EXPECT_EQ(given->source_noise_d, 0.0);  // not estimated
+  EXPECT_FALSE(given->verification.has_value());
 }
 
 // Every MLS projection recovers the transform of the synthetic pair; the default (patches, then

@@ -1,7 +1,7 @@
 // Method auto: registration from any start.
 //   1. The voxel clouds are aligned from the caller's start (coarse_alignment.h), then MLS-SICP
-//      refines on the full-resolution target. A result that verifies and explains enough of the
-//      source is returned.
+//      refines on the full-resolution target. A result that verifies and covers enough of the
+//      source with the target is returned.
 //   2. Otherwise global candidates come from FPFH matches between the voxel clouds at the
 //      feature scale (registration/global_candidates.h); each is aligned on the voxel clouds and
 //      verified, and the start competes with them.
@@ -83,7 +83,7 @@ class AutoRegistration {
                                   start.iterations, Verify(start.transform), Seconds(phase)});
     report_.timings.start = Seconds(phase);
     best_score_ = report_.candidates[0].score;
-    if (best_score_.verified() && best_score_.explained_fraction >= params_.accept_fraction) {
+    if (best_score_.verified() && best_score_.covered_fraction() >= params_.accept_fraction) {
       report_.early_exit = true;
       return Finish(std::move(start));
     }

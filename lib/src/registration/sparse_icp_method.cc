@@ -187,6 +187,7 @@ absl::StatusOr<std::shared_ptr<const Target>> SmoothedTarget(const Target& targe
 
 void AppendPhase(RegistrationResult& total, RegistrationResult&& phase) {
   total.transform = phase.transform;
+  total.num_samples = phase.num_samples;  // the samples of the phase that decided the result
   total.converged = phase.converged;
   total.termination = phase.termination;
   total.iterations += phase.iterations;

@@ -18,8 +18,8 @@ double Squared(double x) { return x * x; }
 
 // A voxel this planar (1 - 3 surface variation) counts its spread as noise.
 constexpr double kFlatVoxelPlanarity = 0.9;
-// The plane of the nearest sample reaches this many of its neighbour spacings along itself.
-constexpr double kReachPerSpacing = 2.0;
+// The plane of the nearest sample reaches as far along itself as its kReachNeighbors-th neighbour.
+constexpr std::size_t kReachNeighbors = 8;
 
 // Where a moved sample meets the target's surface, and the noise expected there.
 struct SurfaceHit {
@@ -35,33 +35,29 @@ SurfaceHit HitSurface(const Target& target, const Vec3& x) {
   if (voxels.valid[voxel] && voxels.planarity[voxel] >= kFlatVoxelPlanarity) {
     hit.local_noise = voxels.spread[voxel];
   }
-  if (const MlsPatches* patches = target.mls_patches()) {
-    const MlsProjection p = patches->Project(x, /*seed_far_queries=*/false);
-    if (p.status == ProjectionStatus::kOk) {
-      hit.distance = (x - p.point).norm();
-      return hit;
-    }
-  }
-  // Sparse regions (far from a LiDAR) have no MLS patch: the plane of the nearest sample, with
-  // its own normal or, where its neighbourhood was too thin, its voxel's.
+  // The plane of the nearest sample, with its voxel's normal: a plane fitted over the voxel's
+  // neighbours, which a LiDAR's rings cannot tilt (a small neighbourhood there is one ring, a
+  // line whose plane is anyone's guess), or the sample's own where the voxel has none.
   const Neighbor nearest = target.tree().Nearest(x);
   const Vec3 offset = x - target.points()[nearest.index];
   const SurfaceProperties& surface = target.surface();
   Vec3 normal;
-  if (surface.valid[nearest.index]) {
-    normal = surface.normals[nearest.index];
-  } else if (voxels.valid[voxel]) {
+  if (voxels.valid[voxel]) {
     normal = voxels.normals[voxel];
+  } else if (surface.valid[nearest.index]) {
+    normal = surface.normals[nearest.index];
   } else {
     hit.distance = offset.norm();
     return hit;
   }
   // Along the plane, a sample is only as close as the data allow: the plane of a sample says
-  // little about a point beyond the local spacing of its neighbours.
-  std::uint32_t index[2];
-  double d2[2];
-  const std::size_t found = target.tree().Knn(target.points()[nearest.index], 2, index, d2);
-  const double reach = found == 2 ? kReachPerSpacing * std::sqrt(d2[1]) : 0.0;
+  // little about a point beyond its neighbourhood (kReachNeighbors of them: across a LiDAR's
+  // rings, not just along one).
+  std::uint32_t index[kReachNeighbors];
+  double d2[kReachNeighbors];
+  const std::size_t found =
+      target.tree().Knn(target.points()[nearest.index], kReachNeighbors, index, d2);
+  const double reach = found > 1 ? std::sqrt(d2[found - 1]) : 0.0;
   const double along = (offset - offset.dot(normal) * normal).norm();
   const double across = std::abs(offset.dot(normal));
   hit.distance = along <= reach ? across : std::hypot(across, along - reach);
@@ -255,8 +251,10 @@ VerificationScore VerifyPose(const Target& target, const PointCloud& source,
 
 bool BetterScore(const VerificationScore& a, const VerificationScore& b) {
   if (a.verified() != b.verified()) return a.verified();
-  if (a.inliers != b.inliers) return a.inliers > b.inliers;
-  return a.rmse_d < b.rmse_d;
+  // Poses that explain the same samples to within 1 % are the same answer: neither is better,
+  // so the one found first stays (a stable order does not flip on the last bit).
+  const int margin = std::max(1, std::max(a.inliers, b.inliers) / 100);
+  return a.inliers >= b.inliers + margin;
 }
 
 std::vector<double> DistancesToMlsSurface(const Target& target, const std::vector<Vec3>& points) {

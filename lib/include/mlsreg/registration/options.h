@@ -38,10 +38,13 @@ struct GicpParams {
 // verification (registration/verification.h).
 struct AutoParams {
   int candidates = 8;  // global poses tried when the start does not verify
-  // The start's result is kept without a global stage when it verifies and explains at least
-  // this share of the source (a wrong pose on a self-similar object can verify on the part it
-  // covers; the global stage then finds the pose that explains more).
-  double accept_fraction = 0.5;
+  // The start's result is kept without a global stage when it verifies and lays at least this
+  // share of the source over the target's data. A pose turned about the axis of a smooth,
+  // roundish object can verify on the part it still covers (on the tuning split: 34 degrees off,
+  // 80 % of the source covered, against 99.9 % at the truth); the global stage then finds the
+  // pose that explains more. 12 of the split's 144 right starts cover less and pay for a global
+  // stage that confirms them.
+  double accept_fraction = 0.9;
   int candidate_iterations = 30;  // the voxel-cloud alignment of each candidate
 };
 

@@ -33,7 +33,7 @@ namespace mlsreg {
 struct VerificationOptions {
   double band_per_noise = 3.0;          // the band is this many combined noise sigmas...
   double min_band_spacings = 1.0;       // ...and at least this many median spacings of the target
-  double coverage_voxels = 3.0;         // covered: a target voxel within this many working voxels
+  double coverage_voxels = 1.0;         // covered: a target voxel within this many working voxels
   double min_inlier_fraction = 0.5;     // of the covered samples
   double min_explained_fraction = 0.1;  // of all samples
   double min_covered_samples = 30;
@@ -79,6 +79,8 @@ struct VerificationScore {
   Verdict verdict = Verdict::kTooLittleOverlap;
 
   bool verified() const { return verdict == Verdict::kVerified; }
+  // covered / samples: the share of the source the pose lays over the target's data.
+  double covered_fraction() const { return samples > 0 ? double(covered) / samples : 0.0; }
   // "translation along (0.99, 0.11, 0.02)" or "rotation about (...)".
   std::string WorstDirectionText() const;
 };
@@ -102,7 +104,7 @@ VerificationScore VerifyPose(const Target& target, const PointCloud& source,
                              const Matrix4& transform, double source_noise_d, int threads);
 
 // Whether `a` explains the source better than `b` (ranks candidate poses): the verdict first,
-// then the inliers, then the RMSE.
+// then more inliers by at least 1 % (within that, two poses are the same answer).
 bool BetterScore(const VerificationScore& a, const VerificationScore& b);
 
 // The distance of each of `points` (in the target's frame) to the target's MLS surface: to its
