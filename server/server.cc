@@ -124,6 +124,9 @@ absl::StatusOr<std::unique_ptr<MlsregServer>> MlsregServer::Start(const ServerCo
   grpc::ServerBuilder builder;
   builder.SetOption(std::make_unique<ReflectionOption>(c.reflection));
   builder.AddListeningPort(c.listen, *credentials, &server->port_);
+  // gRPC sets SO_REUSEPORT by default: a second server on a bound port would start and share
+  // its connections with the first. Without it, binding a port in use fails.
+  builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
   for (const auto& service : server->services_) builder.RegisterService(service.get());
   builder.SetMaxReceiveMessageSize(c.max_message_bytes);
   builder.SetMaxSendMessageSize(c.max_message_bytes);
@@ -135,7 +138,9 @@ absl::StatusOr<std::unique_ptr<MlsregServer>> MlsregServer::Start(const ServerCo
   builder.SetResourceQuota(quota);
   server->server_ = builder.BuildAndStart();
   if (!server->server_ || server->port_ == 0) {
-    return absl::UnavailableError(absl::StrCat("cannot listen on '", c.listen, "'"));
+    return absl::UnavailableError(
+        absl::StrCat("listen: cannot listen on '", c.listen,
+                     "': the address is in use (another server?) or cannot be bound here"));
   }
   grpc::HealthCheckServiceInterface* health = server->server_->GetHealthCheckService();
   for (const char* name : kServiceNames) health->SetServingStatus(name, true);

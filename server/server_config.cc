@@ -3,6 +3,7 @@
 #include <arpa/inet.h>
 #include <netinet/in.h>
 
+#include <algorithm>
 #include <cctype>
 #include <fstream>
 #include <functional>
@@ -96,6 +97,45 @@ std::string HostOf(const std::string& listen) {
   return colon == std::string::npos ? listen : listen.substr(0, colon);
 }
 
+// "--max-streams-per-peer" for the key max_streams_per_peer: `mlsreg serve`'s flag.
+std::string FlagOf(const char* key) {
+  std::string flag = absl::StrCat("--", key);
+  std::replace(flag.begin(), flag.end(), '_', '-');
+  return flag;
+}
+
+// InvalidArgument "<key> (<flag>): <rule>", so both a config file and a command line are named.
+absl::Status Bad(const char* key, const std::string& rule) {
+  return absl::InvalidArgumentError(absl::StrCat(key, " (", FlagOf(key), "): ", rule));
+}
+
+// A listening address: unix sockets as gRPC spells them, else HOST:PORT with a port in
+// [0, 65535] (0: any free port). gRPC would take a larger number modulo 65536.
+absl::Status CheckListenAddress(const char* key, const std::string& address) {
+  if (address.rfind("unix:", 0) == 0 || address.rfind("unix-abstract:", 0) == 0) {
+    return absl::OkStatus();
+  }
+  const std::size_t colon = address.rfind(':');
+  const std::size_t bracket = address.rfind(']');
+  if (colon == std::string::npos || (bracket != std::string::npos && colon < bracket)) {
+    return Bad(key, absl::StrCat("'", address, "' is not HOST:PORT"));
+  }
+  const std::string port = address.substr(colon + 1);
+  const bool digits =
+      !port.empty() && port.size() <= 9 && std::all_of(port.begin(), port.end(), [](char c) {
+        return std::isdigit(static_cast<unsigned char>(c));
+      });
+  if (!digits) {
+    return Bad(key, absl::StrCat("'", address, "' has no port number after the last ':'"));
+  }
+  if (std::stoi(port) > 65535) {
+    return Bad(key, absl::StrCat("port ", port, " in '", address,
+                                 "' is out of range: ports are 0 to 65535 (0: any free port)"));
+  }
+  if (colon == 0) return Bad(key, absl::StrCat("'", address, "' has no host before the port"));
+  return absl::OkStatus();
+}
+
 }  // namespace
 
 absl::StatusOr<std::string> ReadTextFile(const std::string& path, const std::string& what) {
@@ -165,10 +205,13 @@ absl::Status LoadTokenFiles(ServerConfig* config) {
 }
 
 absl::Status Validate(const ServerConfig& c) {
-  auto bad = [](const char* field, const std::string& rule) {
-    return absl::InvalidArgumentError(absl::StrCat(field, ": ", rule));
-  };
-  if (c.listen.empty()) return bad("listen", "must be host:port");
+  auto bad = [](const char* field, const std::string& rule) { return Bad(field, rule); };
+  if (absl::Status s = CheckListenAddress("listen", c.listen); !s.ok()) return s;
+  if (!c.metrics_listen.empty()) {
+    if (absl::Status s = CheckListenAddress("metrics_listen", c.metrics_listen); !s.ok()) {
+      return s;
+    }
+  }
   if (c.workers < 0 || c.workers > 1024) return bad("workers", "must be in [0, 1024]");
   if (c.job_threads < 1 || c.job_threads > 256) return bad("job_threads", "must be in [1, 256]");
   if (c.queue_capacity < 0 || c.queue_capacity > 1'000'000) {

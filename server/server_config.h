@@ -53,7 +53,9 @@ struct ServerConfig {
 // wrongly typed values are InvalidArgument naming the key, so a typo never goes unnoticed.
 absl::Status LoadConfigFile(const std::string& path, ServerConfig* config);
 
-// Range and consistency checks. Plaintext on a non-loopback address without
+// Range and consistency checks; an InvalidArgument names the key and its flag ("listen
+// (--listen): ..."). listen and metrics_listen must be HOST:PORT with a port in [0, 65535] (or a
+// unix socket for listen). Plaintext on a non-loopback address without
 // allow_insecure_remote is FailedPrecondition; a TLS or token file that cannot be read is
 // InvalidArgument naming the file.
 absl::Status Validate(const ServerConfig& config);

@@ -107,6 +107,35 @@ TEST(ServerConfigTest, RefusesPlaintextOnRemoteAddressesAndUnreadableCertificate
   }
 }
 
+TEST(ServerConfigTest, ListenAddressesNeedAPortInRangeAndMessagesNameTheFlag) {
+  // gRPC takes 99999 modulo 65536 (it would listen on 34463): refused before anything listens.
+  for (const char* bad : {"127.0.0.1:99999", "127.0.0.1:65536", "127.0.0.1",
+                          "127.0.0.1:", "127.0.0.1:50x", "[::1]", ":50051"}) {
+    ServerConfig config;
+    config.listen = bad;
+    absl::Status s = Validate(config);
+    EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument) << bad;
+    EXPECT_NE(s.message().find("listen (--listen): "), absl::string_view::npos) << s;
+    config = ServerConfig();
+    config.metrics_listen = bad;
+    s = Validate(config);
+    EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument) << bad;
+    EXPECT_NE(s.message().find("metrics_listen (--metrics-listen): "), absl::string_view::npos)
+        << s;
+  }
+  ServerConfig config;
+  config.listen = "127.0.0.1:99999";
+  EXPECT_NE(Validate(config).message().find("port 99999"), absl::string_view::npos);
+  for (const char* good :
+       {"127.0.0.1:0", "127.0.0.1:65535", "localhost:50051", "[::1]:50051", "unix:/tmp/m.sock"}) {
+    config.listen = good;
+    EXPECT_TRUE(Validate(config).ok()) << good << ": " << Validate(config);
+  }
+  config = ServerConfig();
+  config.workers = -1;
+  EXPECT_NE(Validate(config).message().find("workers (--workers): "), absl::string_view::npos);
+}
+
 // ---------------------------------------------------------------------------- job pool
 
 TEST(JobPoolTest, AdmitsOneRunningAndCapacityQueuedJobsThenRefuses) {
