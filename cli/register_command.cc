@@ -3,7 +3,10 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
+#include "cli/cloud_files.h"
 #include "cli/commands.h"
 #include "cli/connection_flags.h"
 #include "cli/convergence_plot.h"
@@ -21,6 +24,7 @@ namespace {
 
 struct RegisterArgs {
   std::string source, target, init, gt, json, aligned, merged, plot;
+  std::vector<std::string> columns;  // of text and .npy clouds
   bool quiet = false;
   double perturb_angle = 0.0, perturb_translation = 0.0;
   std::uint64_t perturb_seed = 1;
@@ -92,9 +96,23 @@ int RunRemote(const RegisterArgs& args, const RegistrationOptions& options,
   return Finish(args, options, remote->result, remote->ground_truth_error, source, truth);
 }
 
+// The flags naming files are checked before anything runs: a registration is not lost to a typo.
+absl::Status CheckOutputs(const RegisterArgs& args) {
+  std::vector<std::string> inputs = {args.source};
+  if (!args.connection.has_server()) inputs.push_back(args.target);
+  if (absl::Status s = CheckColumnsApply(args.columns, inputs); !s.ok()) return s;
+  for (const auto& [flag, path] :
+       {std::pair{"--aligned", &args.aligned}, std::pair{"--merged", &args.merged}}) {
+    if (path->empty()) continue;
+    if (absl::Status s = CheckCloudOutput(flag, *path); !s.ok()) return s;
+  }
+  return absl::OkStatus();
+}
+
 int RunRegister(const RegisterArgs& args) {
   auto options = args.flags.ToOptions();
   if (!options.ok()) return Fail(options.status());
+  if (absl::Status s = CheckOutputs(args); !s.ok()) return Fail(s);
   Matrix4 initial = Matrix4::Identity();
   if (!args.init.empty()) {
     auto m = ParseTransform(args.init, "--init");
@@ -107,7 +125,7 @@ int RunRegister(const RegisterArgs& args) {
     if (!m.ok()) return Fail(m.status());
     truth = *m;
   }
-  auto source = ReadPointCloud(args.source);
+  auto source = ReadCloudNoting("register", args.source, args.columns);
   if (!source.ok()) return Fail(source.status());
   if (args.connection.has_server()) {
     if (!args.aligned.empty() || !args.merged.empty()) {
@@ -116,7 +134,7 @@ int RunRegister(const RegisterArgs& args) {
     }
     return RunRemote(args, *options, *source, initial, truth);
   }
-  auto target_cloud = ReadPointCloud(args.target);
+  auto target_cloud = ReadCloudNoting("register", args.target, args.columns);
   if (!target_cloud.ok()) return Fail(target_cloud.status());
   TargetOptions target_options;
   target_options.threads = args.threads;
@@ -162,21 +180,26 @@ CommandRunner AddRegisterCommand(CLI::App& app) {
       "register",
       "register a source scan to a target scan (exit codes: see `mlsreg manual`; 4: method auto "
       "found no pose that verifies)");
-  cmd->add_option("--source", args->source, "source cloud (PLY, PCD, XYZ/CSV)")->required();
+  cmd->add_option("--source", args->source, "source cloud (PLY, PCD, XYZ/CSV, NPY)")->required();
   cmd->add_option("--target", args->target,
-                  "target cloud (PLY, PCD, XYZ/CSV), or with --server the id of a cached target")
+                  "target cloud (PLY, PCD, XYZ/CSV, NPY), or with --server the id of a target on "
+                  "the server (upload one with `mlsreg targets upload`)")
       ->required();
+  AddColumnsFlag(*cmd, &args->columns);
   cmd->add_option("--init", args->init,
                   "initial source->target transform: 16 row-major numbers or a file");
   cmd->add_option("--gt", args->gt, "ground-truth transform, to report the error against");
   cmd->add_option("--json", args->json, "write the result (transform, trace, errors) as JSON");
   cmd->add_flag("--quiet", args->quiet, "print only the result");
   cmd->add_option("--aligned", args->aligned,
-                  "write the aligned source as PLY, with its distance to the target's MLS surface "
-                  "as scalar field distance_d (units of d) and as colours (blue 0, red >= 3 d)");
+                  "write the aligned source (PLY, PCD, XYZ/CSV or NPY by the extension) with its "
+                  "distance to the target's MLS surface as scalar field distance_d (units of d), "
+                  "and the source's colours, or if it has none the distance as colours (blue 0, "
+                  "red >= 3 d); NPY columns: x y z [nx ny nz] distance_d r g b");
   cmd->add_option("--merged", args->merged,
-                  "write source (orange) and target (blue) in the target's frame as PLY, with "
-                  "scalar field cloud (0 source, 1 target)");
+                  "write source (orange) and target (blue) in the target's frame (PLY, PCD, "
+                  "XYZ/CSV or NPY by the extension), with scalar field cloud (0 source, 1 "
+                  "target); NPY columns: x y z cloud r g b");
   cmd->add_option("--plot", args->plot,
                   "draw the convergence as PNG: RMSE/d per iteration (and against --gt), matched "
                   "and rejected correspondences (needs python3-matplotlib)");

@@ -9,7 +9,7 @@ Local registration::
     result.transform                                                  # 4x4 ndarray
 
 Clouds are NumPy arrays of shape (N, 3) or (N, 6) (points and normals), an mlsreg.Cloud, or an
-open3d.geometry.PointCloud. Registration parameters are keyword arguments named as in the
+Open3D point cloud (``open3d.geometry.PointCloud`` or ``open3d.t.geometry.PointCloud``). Registration parameters are keyword arguments named as in the
 library's parameter table (``mlsreg.parameters()``), with its defaults and ranges.
 
 Remote registration goes through ``mlsreg.Client`` (the C++ client library: retries, replica
@@ -25,6 +25,7 @@ import dataclasses
 import json
 import queue
 import threading
+import warnings
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Callable, Iterator, Optional, Sequence
 
@@ -35,7 +36,8 @@ from ._mlsreg import Error, Target, methods, parameters, read_poses
 
 __all__ = [
     "Cloud", "Target", "IterationReport", "Result", "PoseError", "BatchOutcome", "Client",
-    "RegistrationStream", "Error", "read_cloud", "register", "evaluate", "methods", "parameters",
+    "RegistrationStream", "Error", "read_cloud", "write_cloud", "register", "evaluate", "methods",
+    "parameters",
     "TRACE_DTYPE", "AlignResult", "align_scans", "merge_scans", "read_poses",
 ]
 
@@ -44,13 +46,18 @@ __version__ = "0.1.0"
 
 @dataclasses.dataclass
 class Cloud:
-    """A scan read from a file: points (N, 3) float64, normals (N, 3) or None, and metadata."""
+    """A scan read from a file: points (N, 3) float64, normals (N, 3) or None, colors (N, 3)
+    uint8 or None, and metadata. ``notes`` say how the file's fields were read (fields ignored,
+    unnamed columns read from the data). Registration uses the points only: normals are
+    estimated from them, and the colours are carried to files written with write_cloud."""
 
     points: np.ndarray
     normals: Optional[np.ndarray] = None
+    colors: Optional[np.ndarray] = None
     viewpoint: Optional[np.ndarray] = None  # the sensor origin, when the file says
     intrinsics: Optional[dict] = None  # pinhole camera of an organised scan
     path: Optional[str] = None
+    notes: list = dataclasses.field(default_factory=list)
 
     @property
     def array(self) -> np.ndarray:
@@ -66,9 +73,22 @@ class Cloud:
         return self.array if dtype is None else self.array.astype(dtype)
 
 
-def read_cloud(path: str) -> Cloud:
-    """Reads a .ply, .pcd, .xyz/.txt/.csv or .npy cloud (with normals and metadata if present)."""
-    return Cloud(path=str(path), **_mlsreg.read_cloud(str(path)))
+def read_cloud(path: str, columns: Optional[Sequence[str]] = None) -> Cloud:
+    """Reads a .ply, .pcd, .xyz/.txt/.csv or .npy cloud (with normals, colours and metadata if
+    present). ``columns`` names the columns of a text or .npy file (e.g. ``["x", "y", "z", "r",
+    "g", "b"]``; other names are read and ignored); by default a text file's header line or the
+    column count decides. Each of the cloud's ``notes`` is also issued as a UserWarning."""
+    cloud = Cloud(path=str(path), **_mlsreg.read_cloud(str(path), list(columns or [])))
+    for note in cloud.notes:
+        warnings.warn(note, stacklevel=2)
+    return cloud
+
+
+def write_cloud(path: str, cloud) -> None:
+    """Writes a cloud (as register takes it: an array, a Cloud, an Open3D cloud) with its normals
+    and colours in the format the extension names: .ply, .pcd, .xyz/.txt/.csv (a header line
+    names the columns when there are more than x y z) or .npy (points and normals only)."""
+    _mlsreg.write_cloud(str(path), cloud)
 
 
 @dataclasses.dataclass

@@ -102,15 +102,30 @@ py::dict TargetInfoToPython(const TargetInfo& info) {
 void BindLocal(py::module_& m) {
   m.def(
       "read_cloud",
-      [](const std::string& path) {
-        absl::StatusOr<PointCloud> cloud;
+      [](const std::string& path, const std::vector<std::string>& columns) {
+        absl::StatusOr<CloudFile> file;
         {
           py::gil_scoped_release release;
-          cloud = ReadPointCloud(path);
+          file = ReadCloudFile(path, ReadOptions{columns});
         }
-        return CloudToPython(ValueOrThrow(std::move(cloud)));
+        CloudFile read = ValueOrThrow(std::move(file));
+        py::dict out = CloudToPython(read.cloud);
+        out["notes"] = read.notes;
+        return out;
       },
-      py::arg("path"));
+      py::arg("path"), py::arg("columns"));
+  m.def(
+      "write_cloud",
+      [](const std::string& path, py::object cloud) {
+        const PointCloud converted = CloudFromPython(cloud, "cloud");
+        absl::Status written;
+        {
+          py::gil_scoped_release release;
+          written = WritePointCloud(converted, path);
+        }
+        ThrowIfError(written);
+      },
+      py::arg("path"), py::arg("cloud"));
 
   py::class_<TargetHandle>(m, "Target")
       .def(py::init(&MakeTarget), py::arg("points"), py::arg("normals") = py::none(),

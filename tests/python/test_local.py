@@ -42,6 +42,68 @@ def test_read_cloud_errors_name_the_path(tmp_path):
         mlsreg.read_cloud(tmp_path / "x.abc")
 
 
+def test_text_colours_are_colours_and_extra_columns_are_said(tmp_path):
+    points = np.arange(30, dtype=float).reshape(10, 3)
+    colours = np.tile([255, 0, 10], (10, 1))
+    np.savetxt(tmp_path / "cc.txt", np.hstack([points, colours]), fmt="%g", delimiter=",",
+               header="//X,Y,Z,R,G,B", comments="")
+    cloud = mlsreg.read_cloud(tmp_path / "cc.txt")
+    assert cloud.normals is None
+    assert cloud.colors.dtype == np.uint8
+    np.testing.assert_array_equal(cloud.colors, colours)
+    np.savetxt(tmp_path / "i.xyz", np.hstack([points, np.ones((10, 1))]), fmt="%g")
+    with pytest.warns(UserWarning, match="column 4 ignored"):
+        cloud = mlsreg.read_cloud(tmp_path / "i.xyz")
+    np.testing.assert_array_equal(cloud.points, points)
+    with pytest.warns(UserWarning, match=r"intensity \(column 4\)"):
+        cloud = mlsreg.read_cloud(tmp_path / "i.xyz", columns=["x", "y", "z", "intensity"])
+    assert cloud.notes and "intensity" in cloud.notes[0]
+
+
+def test_write_cloud_writes_what_the_extension_names(tmp_path, bun000):
+    points = bun000.points[:200]
+    normals = np.tile([0.0, 0.6, 0.8], (200, 1))
+    colours = np.stack([np.arange(200) % 256, np.full(200, 7), np.full(200, 250)], 1)
+    cloud = mlsreg.Cloud(points=points, normals=normals, colors=colours.astype(np.uint8))
+    for name in ["a.ply", "b.pcd", "c.xyz", "d.csv", "e.npy"]:
+        mlsreg.write_cloud(tmp_path / name, cloud)
+        back = mlsreg.read_cloud(tmp_path / name)
+        np.testing.assert_array_equal(back.points, points)
+        np.testing.assert_array_equal(back.normals, normals)
+        if name.endswith(".npy"):  # NPY files hold points and normals only
+            assert back.colors is None
+        else:
+            np.testing.assert_array_equal(back.colors, colours)
+    assert (tmp_path / "b.pcd").read_bytes().startswith(b"# .PCD")
+    assert (tmp_path / "c.xyz").read_text().startswith("x y z nx ny nz r g b\n")
+    with pytest.raises(ValueError, match="obj"):
+        mlsreg.write_cloud(tmp_path / "f.obj", cloud)
+
+
+def test_open3d_compressed_pcd_and_tensor_clouds(tmp_path, bun000, bun045, near_start):
+    o3d = pytest.importorskip("open3d")
+    legacy = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(bun000.points[:3000]))
+    rgb = np.random.default_rng(1).random((3000, 3))
+    legacy.colors = o3d.utility.Vector3dVector(rgb)
+    # PCL's (and Open3D's) compressed PCD: LZF-compressed binary fields.
+    assert o3d.io.write_point_cloud(str(tmp_path / "c.pcd"), legacy, compressed=True)
+    assert b"DATA binary_compressed" in (tmp_path / "c.pcd").read_bytes()[:300]
+    cloud = mlsreg.read_cloud(tmp_path / "c.pcd")
+    np.testing.assert_array_equal(cloud.points, bun000.points[:3000].astype(np.float32))
+    np.testing.assert_allclose(cloud.colors, rgb * 255, atol=1.0)
+    # Tensor clouds are taken as legacy ones are (they failed on "dtype object").
+    source = o3d.t.geometry.PointCloud(o3d.core.Tensor(bun000.points))
+    target = o3d.t.geometry.PointCloud(o3d.core.Tensor(bun045.points))
+    from_tensors = mlsreg.register(source, target, method="cp-sicp", init=near_start)
+    from_arrays = mlsreg.register(bun000.points, bun045.points, method="cp-sicp", init=near_start)
+    np.testing.assert_array_equal(from_tensors.transform, from_arrays.transform)
+    coloured = o3d.t.geometry.PointCloud(o3d.core.Tensor(bun000.points[:100].astype(np.float32)))
+    coloured.point["colors"] = o3d.core.Tensor(rgb[:100].astype(np.float32))
+    mlsreg.write_cloud(tmp_path / "t.ply", coloured)
+    np.testing.assert_allclose(mlsreg.read_cloud(tmp_path / "t.ply").colors, rgb[:100] * 255,
+                               atol=1.0)
+
+
 # ---- registration
 
 def test_register_recovers_the_ground_truth(bun000, bunny_target, gt, near_start):
