@@ -73,6 +73,11 @@ int RunAlign(const AlignArgs& args) {
   if (!args.merged.empty()) {
     if (absl::Status s = CheckCloudOutput("--merged", args.merged); !s.ok()) return Fail(s);
   }
+  for (const auto& [flag, path] :
+       {std::pair{"--out", &args.out}, std::pair{"--json", &args.json}}) {
+    if (path->empty()) continue;
+    if (absl::Status s = CheckWritable(flag, *path); !s.ok()) return Fail(s);
+  }
   std::vector<PointCloud> scans;
   for (const std::string& path : args.cached ? std::vector<std::string>{} : args.scans) {
     auto cloud = ReadCloudNoting("align", path);

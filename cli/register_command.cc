@@ -1,4 +1,5 @@
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <optional>
@@ -6,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "absl/strings/str_cat.h"
 #include "cli/cloud_files.h"
 #include "cli/commands.h"
 #include "cli/connection_flags.h"
@@ -50,21 +52,22 @@ Matrix4 Perturbed(const RegisterArgs& args, const PointCloud& source, const Matr
                         {args.perturb_angle, args.perturb_translation, args.perturb_seed});
 }
 
-// Writes --json and --plot, and returns the exit code of a finished registration.
+// Writes --json, then --plot (a picture that fails loses no result), and returns the exit code
+// of a finished registration.
 int Finish(const RegisterArgs& args, const RegistrationOptions& options,
            const RegistrationResult& result, const std::optional<PoseError>& error,
            const PointCloud& source, const std::optional<Matrix4>& truth) {
+  if (!args.json.empty()) {
+    std::ofstream out(args.json);
+    out << ResultJson(MethodName(options.method), result, error).dump(2) << "\n";
+    if (!out) return Fail(absl::UnavailableError("cannot write --json file '" + args.json + "'"));
+  }
   if (!args.plot.empty()) {
     if (absl::Status s =
             WriteConvergencePlot(args.plot, MethodName(options.method), result, source, truth);
         !s.ok()) {
       return Fail(s);
     }
-  }
-  if (!args.json.empty()) {
-    std::ofstream out(args.json);
-    out << ResultJson(MethodName(options.method), result, error).dump(2) << "\n";
-    if (!out) return Fail(absl::UnavailableError("cannot write --json file '" + args.json + "'"));
   }
   if (result.auto_report && !result.auto_report->verified &&
       result.termination != Termination::kCancelled) {
@@ -92,12 +95,29 @@ int RunRemote(const RegisterArgs& args, const RegistrationOptions& options,
   if (!args.quiet) on_progress = PrintIteration;
   auto remote = (*client)->Register(args.target, source, initial, options, truth, on_progress);
   if (!remote.ok()) return Fail(remote.status());
-  std::printf("%s", FormatResult(remote->result, remote->ground_truth_error).c_str());
+  std::printf(
+      "%s",
+      FormatResult(remote->result, remote->ground_truth_error, options.max_iterations).c_str());
   return Finish(args, options, remote->result, remote->ground_truth_error, source, truth);
 }
 
+// With --server, --target names a target on the server. A path there is a mistake the server
+// would answer with "character 0 is not allowed"; say what to do instead.
+absl::Status CheckServedTarget(const RegisterArgs& args) {
+  std::error_code error;
+  const bool looks_like_a_file = args.target.find('/') != std::string::npos ||
+                                 CloudFormatOfPath(args.target).ok() ||
+                                 std::filesystem::is_regular_file(args.target, error);
+  if (!looks_like_a_file) return absl::OkStatus();
+  return absl::InvalidArgumentError(absl::StrCat(
+      "--target: with --server, the target is the id of a target on the server, not a file ('",
+      args.target, "'); upload the file first with `mlsreg targets upload --server ",
+      args.connection.options().address, " --id NAME ", args.target,
+      "` and register with --target NAME (`mlsreg targets list` shows the ids)"));
+}
+
 // The flags naming files are checked before anything runs: a registration is not lost to a typo.
-absl::Status CheckOutputs(const RegisterArgs& args) {
+absl::Status CheckArguments(const RegisterArgs& args) {
   std::vector<std::string> inputs = {args.source};
   if (!args.connection.has_server()) inputs.push_back(args.target);
   if (absl::Status s = CheckColumnsApply(args.columns, inputs); !s.ok()) return s;
@@ -106,13 +126,20 @@ absl::Status CheckOutputs(const RegisterArgs& args) {
     if (path->empty()) continue;
     if (absl::Status s = CheckCloudOutput(flag, *path); !s.ok()) return s;
   }
+  if (!args.json.empty()) {
+    if (absl::Status s = CheckWritable("--json", args.json); !s.ok()) return s;
+  }
+  if (!args.plot.empty()) {
+    if (absl::Status s = CheckPlotPath(args.plot); !s.ok()) return s;
+  }
+  if (args.connection.has_server()) return CheckServedTarget(args);
   return absl::OkStatus();
 }
 
 int RunRegister(const RegisterArgs& args) {
   auto options = args.flags.ToOptions();
   if (!options.ok()) return Fail(options.status());
-  if (absl::Status s = CheckOutputs(args); !s.ok()) return Fail(s);
+  if (absl::Status s = CheckArguments(args); !s.ok()) return Fail(s);
   Matrix4 initial = Matrix4::Identity();
   if (!args.init.empty()) {
     auto m = ParseTransform(args.init, "--init");
@@ -156,7 +183,7 @@ int RunRegister(const RegisterArgs& args) {
   if (truth) {
     error = EvaluatePose(source->points, result->transform, *truth, result->sampling_distance);
   }
-  std::printf("%s", FormatResult(*result, error).c_str());
+  std::printf("%s", FormatResult(*result, error, options->max_iterations).c_str());
   if (!args.aligned.empty()) {
     if (absl::Status s = WriteAlignedCloud(args.aligned, *source, result->transform, **target);
         !s.ok()) {
