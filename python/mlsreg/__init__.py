@@ -9,14 +9,17 @@ Local registration::
     result.transform                                                  # 4x4 ndarray
 
 Clouds are NumPy arrays of shape (N, 3) or (N, 6) (points and normals), an mlsreg.Cloud, or an
-Open3D point cloud (``open3d.geometry.PointCloud`` or ``open3d.t.geometry.PointCloud``). Registration parameters are keyword arguments named as in the
-library's parameter table (``mlsreg.parameters()``), with its defaults and ranges.
+Open3D point cloud (``open3d.geometry.PointCloud`` or ``open3d.t.geometry.PointCloud``).
+Registration parameters are keyword arguments named as in the library's parameter table
+(``mlsreg.parameters()``: its names, such as ``min_normal_dot``, or the CLI's flags with ``_``
+for ``-``, such as ``tau_n``), with its defaults and ranges.
 
 Remote registration goes through ``mlsreg.Client`` (the C++ client library: retries, replica
 routing, chunked uploads).
 
-Errors: bad input raises ValueError with the library's message; an unknown target LookupError;
-everything else mlsreg.Error (``.code`` is the status code's name).
+Errors: bad input raises ValueError with the library's message; a missing file
+FileNotFoundError; an unknown target LookupError; everything else mlsreg.Error (``.code`` is the
+status code's name).
 """
 
 from __future__ import annotations
@@ -42,6 +45,11 @@ __all__ = [
 ]
 
 __version__ = "0.1.0"
+
+
+def __dir__():
+    """The package's API only (not the modules it imports, such as numpy and json)."""
+    return sorted(__all__ + ["__version__"])
 
 
 @dataclasses.dataclass
@@ -107,7 +115,7 @@ class IterationReport:
     invalid: int
     admm_iterations: int
     elapsed_seconds: float
-    transform: np.ndarray
+    transform: np.ndarray = dataclasses.field(repr=False)
 
 
 TRACE_DTYPE = np.dtype([
@@ -164,6 +172,13 @@ class Result:
         """Method auto: whether the result verified against the target's MLS surface."""
         return None if self.auto is None else bool(self.auto["verified"])
 
+    def __repr__(self) -> str:
+        last = f", rmse_d={self.trace['rmse_d'][-1]:.4g}" if len(self.trace) else ""
+        verified = "" if self.verified is None else f", verified={self.verified}"
+        return (f"Result(method={self.method!r}, termination={self.termination!r}, "
+                f"iterations={self.iterations}{last}{verified}, "
+                f"seconds={self.timings.get('total', 0.0):.3g})")
+
 
 def _result(raw: dict, method: str, source) -> Result:
     raw = dict(raw)
@@ -191,8 +206,10 @@ def register(source, target, method: str = "auto", init=None,
     ``source`` and ``target`` are (N, 3) or (N, 6) arrays, Clouds or Open3D point clouds; pass a
     ``Target`` to reuse a target's prepared surface. ``callback(report)`` is called after every
     iteration; returning False cancels (the result then says ``termination == "cancelled"``).
-    ``params`` are the parameter table's names (``mlsreg.parameters()``); None means auto.
-    The GIL is released while registering.
+    ``params`` are the parameter table's names or the CLI's flags with ``_`` for ``-``
+    (``mlsreg.parameters()``: ``min_normal_dot=0.5`` or ``tau_n=0.5``); None means auto.
+    ``threads`` (1 to 256) are used inside the registration and the target build; the result
+    does not depend on them. The GIL is released while registering.
     """
     raw = _mlsreg._register(source, target, method, init, _adapt(callback), threads, params)
     return _result(raw, method, source)
@@ -262,6 +279,10 @@ class BatchOutcome:
     @property
     def ok(self) -> bool:
         return self.error is None
+
+    def __repr__(self) -> str:
+        outcome = f"result={self.result!r}" if self.ok else f"error={self.error!r}"
+        return f"BatchOutcome(target_id={self.job.get('target_id')!r}, {outcome})"
 
 
 class RegistrationStream:

@@ -35,7 +35,7 @@ def test_every_written_format_reads_back_the_same_points(tmp_path, bun000):
 
 
 def test_read_cloud_errors_name_the_path(tmp_path):
-    with pytest.raises(LookupError, match="nope.ply"):
+    with pytest.raises(FileNotFoundError, match="nope.ply"):  # as open() raises it
         mlsreg.read_cloud(tmp_path / "nope.ply")
     (tmp_path / "x.abc").write_text("1 2 3\n")
     with pytest.raises(ValueError, match="abc"):
@@ -156,6 +156,60 @@ def test_parameters_are_the_tables_names_with_its_defaults():
     assert rows["mls_radius_d"]["path"] == "mls.radius_d"
     assert rows["mls_radius_d"]["default"] == "auto"
     assert "auto" in mlsreg.methods() and "mls-sicp" in mlsreg.methods()
+
+
+def test_parameters_show_the_cli_flag_and_a_readable_range():
+    rows = {row["name"]: row for row in mlsreg.parameters()}
+    assert rows["min_normal_dot"]["flag"] == "--tau-n" and rows["min_normal_dot"]["alias"] == "tau_n"
+    assert rows["num_samples"]["flag"] == "--samples"
+    assert rows["max_iterations"]["range"] == "[1, 100000]"
+    assert rows["seed"]["range"] == "an integer from 0 to 18446744073709551615"
+    for row in rows.values():
+        assert row["flag"].startswith("--") and "inf" not in row["range"], row
+    # An alias never names another parameter.
+    names = {row["name"]: row for row in rows.values()}
+    names.update({row["path"]: row for row in rows.values()})
+    for row in rows.values():
+        assert names.get(row["alias"], row) is row, row["alias"]
+
+
+def test_parameters_take_the_cli_flags_names_too(bun000, bunny_target, near_start):
+    def run(**params):
+        return mlsreg.register(bun000, bunny_target, method="mls-sicp", init=near_start,
+                               max_iterations=5, **params).transform
+
+    np.testing.assert_array_equal(run(tau_n=0.5, samples=400), run(min_normal_dot=0.5,
+                                                                   num_samples=400))
+    assert not np.array_equal(run(samples=400), run(samples=300))
+    np.testing.assert_array_equal(run(no_warm_start=True), run(mls_warm_start=False))
+    with pytest.raises(ValueError, match="tau_n and min_normal_dot name the same parameter"):
+        run(min_normal_dot=0.5, tau_n=0.4)
+
+
+def test_threads_must_be_in_range(bun000, bunny_target):
+    for threads in (0, -1, 257):
+        with pytest.raises(ValueError, match=r"threads must be in \[1, 256\]"):
+            mlsreg.register(bun000, bunny_target, threads=threads)
+        with pytest.raises(ValueError, match="threads"):
+            mlsreg.Target(bun000.points[:100], threads=threads)
+
+
+def test_the_package_shows_its_api_in_short(bun000, bunny_target, near_start):
+    assert "np" not in dir(mlsreg) and "json" not in dir(mlsreg)
+    assert {"register", "Target", "read_cloud", "write_cloud", "parameters"} <= set(dir(mlsreg))
+    assert "built once" in mlsreg.Target.__doc__ or "prepared once" in mlsreg.Target.__doc__
+    result = mlsreg.register(bun000, bunny_target, init=near_start)
+    assert len(repr(result)) < 200 and repr(result).startswith("Result(method='auto'"), repr(result)
+    assert "trace" not in repr(result)
+    outcome = mlsreg.BatchOutcome(job={"target_id": "bun045", "source": bun000}, result=result)
+    assert len(repr(outcome)) < 300 and "bun045" in repr(outcome), repr(outcome)
+    failed = mlsreg.BatchOutcome(job={"target_id": "x", "source": bun000.points},
+                                 error=LookupError("target 'x' not found"))
+    assert repr(failed) == "BatchOutcome(target_id='x', error=LookupError(\"target 'x' not found\"))"
+    reports = []
+    mlsreg.register(bun000, bunny_target, init=near_start, max_iterations=1,
+                    callback=reports.append)
+    assert "transform" not in repr(reports[0]) and len(repr(reports[0])) < 400, repr(reports[0])
 
 
 def test_parameters_change_the_registration(bun000, bunny_target, near_start):
