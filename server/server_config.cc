@@ -79,6 +79,10 @@ const std::map<std::string, FieldSetter>& Setters() {
       {"drain_seconds", Set("drain_seconds", &ServerConfig::drain_seconds)},
       {"max_inflight_bytes", Set("max_inflight_bytes", &ServerConfig::max_inflight_bytes)},
       {"max_streams_per_peer", Set("max_streams_per_peer", &ServerConfig::max_streams_per_peer)},
+      {"max_streams_per_client",
+       Set("max_streams_per_client", &ServerConfig::max_streams_per_client)},
+      {"max_streams_per_connection",
+       Set("max_streams_per_connection", &ServerConfig::max_streams_per_connection)},
       {"idle_timeout_seconds", Set("idle_timeout_seconds", &ServerConfig::idle_timeout_seconds)},
       {"reflection", Set("reflection", &ServerConfig::reflection)},
       {"token_file", Set("token_file", &ServerConfig::token_file)},
@@ -199,7 +203,11 @@ absl::Status LoadTokenFiles(ServerConfig* config) {
     if (value.empty()) {
       return absl::InvalidArgumentError(absl::StrCat(what, ": file '", *file, "' is empty"));
     }
-    *token = value;
+    if (token == &config->admin_token && value.find('\n') != std::string::npos) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(what, ": file '", *file, "' holds more than one line: one admin token"));
+    }
+    *token = value;  // token_file: one user token per line (TokenAuthenticator splits them)
   }
   return absl::OkStatus();
 }
@@ -227,6 +235,8 @@ absl::Status Validate(const ServerConfig& c) {
   if (c.max_concurrent_rpcs < 4) return bad("max_concurrent_rpcs", "must be >= 4");
   if (c.max_inflight_bytes == 0) return bad("max_inflight_bytes", "must be > 0");
   if (c.max_streams_per_peer < 1) return bad("max_streams_per_peer", "must be >= 1");
+  if (c.max_streams_per_client < 1) return bad("max_streams_per_client", "must be >= 1");
+  if (c.max_streams_per_connection < 1) return bad("max_streams_per_connection", "must be >= 1");
   if (!(c.idle_timeout_seconds >= 0.05 && c.idle_timeout_seconds <= 86400.0)) {
     return bad("idle_timeout_seconds", "must be in [0.05, 86400]");
   }
