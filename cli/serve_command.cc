@@ -103,7 +103,7 @@ CommandRunner AddServeCommand(CLI::App& app) {
   Bind(*cmd, *args, "--idle-timeout-seconds", "MLSREG_IDLE_TIMEOUT_SECONDS",
        &C::idle_timeout_seconds, "end a stream whose client is silent this long");
   Bind(*cmd, *args, "--reflection", "MLSREG_REFLECTION", &C::reflection,
-       "serve gRPC reflection (answers without a token)");
+       "serve gRPC reflection (off by default: it answers without a token)");
   Bind(*cmd, *args, "--drain-seconds", "MLSREG_DRAIN_SECONDS", &C::drain_seconds,
        "on SIGTERM, time running registrations get before they are cancelled");
   return [args] { return RunServe(*args); };
