@@ -363,8 +363,13 @@ TEST_P(PlyEncodingTest, SkipsOtherPropertiesAndElements) {
   Put<std::int32_t>(&bytes, encoding, 1);
   EndInstance(&bytes, encoding);
 
-  const absl::StatusOr<PointCloud> cloud = ParsePly(bytes);
-  ASSERT_TRUE(cloud.ok()) << cloud.status();
+  const absl::StatusOr<CloudFile> file = ParseCloudFile(CloudFormat::kPly, bytes);
+  ASSERT_TRUE(file.ok()) << file.status();
+  // A red channel alone is not a colour: read and ignored like the others, and said.
+  EXPECT_EQ(file->notes, std::vector<std::string>{
+                             "PLY: vertex properties read and ignored: red, confidence, weights"});
+  const PointCloud* cloud = &file->cloud;
+  EXPECT_FALSE(cloud->has_colors());
   ASSERT_EQ(cloud->size(), 3u);
   ASSERT_TRUE(cloud->has_normals());
   for (int i = 0; i < 3; ++i) {

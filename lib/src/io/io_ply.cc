@@ -214,8 +214,8 @@ absl::Status ParsePropertyLine(std::string_view rest, const Location& where, Ply
   return absl::OkStatus();
 }
 
-// Marks which vertex properties hold x, y, z (required), nx, ny, nz and red, green, blue (each
-// all three or none), and lists the others.
+// Marks which vertex properties hold x, y, z (required), nx, ny, nz (all three or none) and
+// red, green, blue (all three, or they are ignored), and lists the others.
 absl::Status AssignVertexComponents(PlyHeader* header) {
   PlyElement* vertex = nullptr;
   for (PlyElement& element : header->elements) {
@@ -237,7 +237,6 @@ absl::Status AssignVertexComponents(PlyHeader* header) {
       if (component >= Component::kRed) property.scale = ColorScale(property.type);
       found[component] = true;
     }
-    if (property.component == Component::kNotAComponent) header->ignored.push_back(property.name);
   }
   for (int component = 0; component < 3; ++component) {
     if (!found[component]) {
@@ -252,9 +251,12 @@ absl::Status AssignVertexComponents(PlyHeader* header) {
                    "the vertex element has only some of nx, ny, nz (all three or none)");
   }
   header->has_colors = found[6] && found[7] && found[8];
-  if (!header->has_colors && (found[6] || found[7] || found[8])) {
-    return ErrorAt(AtLine(kPly, vertex->header_line),
-                   "the vertex element has only some of red, green, blue (all three or none)");
+  for (PlyProperty& property : vertex->properties) {
+    // Some colour channels only are not a colour: read and ignored, as other properties are.
+    if (!header->has_colors && property.component >= Component::kRed) {
+      property.component = Component::kNotAComponent;
+    }
+    if (property.component == Component::kNotAComponent) header->ignored.push_back(property.name);
   }
   return absl::OkStatus();
 }
