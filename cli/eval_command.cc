@@ -108,9 +108,9 @@ const char* kFixedColumns[] = {"manifest",
                                "auto_inlier_distance_d",
                                "label"};
 
-// "0.3120" right-aligned in `width`, or "-" when there is no value (every run failed to run).
-std::string Cell(const std::vector<double>& values, double value, const char* format, int width) {
-  return absl::StrFormat("%*s", width, values.empty() ? "-" : absl::StrFormat(format, value));
+// `text` right-aligned in `width`, or "-" when there is no value (every run failed to run).
+std::string Cell(const std::vector<double>& values, const std::string& text, int width) {
+  return absl::StrFormat("%*s", width, values.empty() ? "-" : text);
 }
 
 bool Perturbs(const EvalArgs& args) {
@@ -265,9 +265,10 @@ int RunEval(const EvalArgs& args) {
     for (double v : e) mean += v;
     if (!e.empty()) mean /= static_cast<double>(e.size());
     std::fprintf(summary, "%-18s %5d %4d/%-4d %7d %s %s %s\n", std::string(MethodName(m)).c_str(),
-                 runs[m], successes[m], runs[m], errors[m], Cell(e, Median(e), "%.4f", 14).c_str(),
-                 Cell(e, mean, "%.4f", 14).c_str(),
-                 Cell(e, Median(time_by_method[m]), "%.3f s", 12).c_str());
+                 runs[m], successes[m], runs[m], errors[m],
+                 Cell(e, absl::StrFormat("%.4f", Median(e)), 14).c_str(),
+                 Cell(e, absl::StrFormat("%.4f", mean), 14).c_str(),
+                 Cell(e, absl::StrFormat("%.3f s", Median(time_by_method[m])), 12).c_str());
   }
   if (!failures.empty()) {
     std::fprintf(summary,
