@@ -5,7 +5,8 @@
 #   docker build -t mlsreg .
 #   docker run -p 50051:50051 -v mlsreg-data:/var/lib/mlsreg -e MLSREG_TOKEN=secret mlsreg
 #
-# Port 50051: gRPC (mlsreg.v1 services, grpc.health.v1, reflection). Port 9464: Prometheus
+# Port 50051: gRPC (mlsreg.v1 services, grpc.health.v1; reflection only with
+# MLSREG_REFLECTION=true, off by default). Port 9464: Prometheus
 # /metrics (plain HTTP, no token; MLSREG_METRICS_LISTEN, empty turns it off). Volume /var/lib/mlsreg:
 # persisted targets. Configuration: MLSREG_* environment variables (see `mlsreg serve --help`)
 # or a JSON file via MLSREG_CONFIG.

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "absl/strings/str_format.h"
+#include "cli/cloud_files.h"
 #include "cli/commands.h"
 #include "cli/connection_flags.h"
 #include "cli/exit_codes.h"
@@ -69,9 +70,17 @@ int RunAlign(const AlignArgs& args) {
     return Fail(absl::InvalidArgumentError(
         "--merged and --gt need the scans' clouds: give files, not --cached ids"));
   }
+  if (!args.merged.empty()) {
+    if (absl::Status s = CheckCloudOutput("--merged", args.merged); !s.ok()) return Fail(s);
+  }
+  for (const auto& [flag, path] :
+       {std::pair{"--out", &args.out}, std::pair{"--json", &args.json}}) {
+    if (path->empty()) continue;
+    if (absl::Status s = CheckWritable(flag, *path); !s.ok()) return Fail(s);
+  }
   std::vector<PointCloud> scans;
   for (const std::string& path : args.cached ? std::vector<std::string>{} : args.scans) {
-    auto cloud = ReadPointCloud(path);
+    auto cloud = ReadCloudNoting("align", path);
     if (!cloud.ok()) return Fail(cloud.status());
     scans.push_back(*std::move(cloud));
   }

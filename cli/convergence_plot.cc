@@ -1,8 +1,13 @@
 #include "cli/convergence_plot.h"
 
+#include <algorithm>
+#include <filesystem>
 #include <nlohmann/json.hpp>
 
+#include "absl/strings/ascii.h"
+#include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "cli/cloud_files.h"
 #include "cli/embedded_scripts.h"
 #include "cli/python_script.h"
 #include "mlsreg/evaluation/metrics.h"
@@ -36,6 +41,19 @@ std::string ConvergencePlotData(std::string_view method, const RegistrationResul
     }
   }
   return data.dump();
+}
+
+absl::Status CheckPlotPath(const std::string& path) {
+  static constexpr std::string_view kExtensions[] = {".png", ".pdf", ".svg", ".jpg", ".jpeg"};
+  const std::string extension =
+      absl::AsciiStrToLower(std::filesystem::path(path).extension().string());
+  if (std::find(std::begin(kExtensions), std::end(kExtensions), extension) ==
+      std::end(kExtensions)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--plot: '", path,
+                     "' does not end in .png, .pdf, .svg, .jpg or .jpeg (the picture's format)"));
+  }
+  return CheckWritable("--plot", path);
 }
 
 absl::Status WriteConvergencePlot(const std::string& path, std::string_view method,

@@ -18,6 +18,11 @@ namespace mlsreg::cli {
 std::string ConvergencePlotData(std::string_view method, const RegistrationResult& result,
                                 const PointCloud& source, const std::optional<Matrix4>& truth);
 
+// Checked before the registration runs: the extension names a format matplotlib writes (.png,
+// .pdf, .svg, .jpg, .jpeg) and the path can be written (cloud_files.h's CheckWritable).
+// InvalidArgument naming --plot.
+absl::Status CheckPlotPath(const std::string& path);
+
 absl::Status WriteConvergencePlot(const std::string& path, std::string_view method,
                                   const RegistrationResult& result, const PointCloud& source,
                                   const std::optional<Matrix4>& truth);

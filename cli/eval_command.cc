@@ -8,11 +8,13 @@
 #include <nlohmann/json.hpp>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
+#include "cli/cloud_files.h"
 #include "cli/commands.h"
 #include "cli/exit_codes.h"
 #include "cli/registration_flags.h"
@@ -25,7 +27,7 @@ namespace {
 
 struct EvalArgs {
   std::vector<std::string> manifests;
-  std::string methods = "cp-sicp,mls-sicp";
+  std::string methods = std::string(MethodName(RegistrationOptions().method));  // auto
   std::string out;
   std::string json;  // the summary as JSON
   std::string label;
@@ -111,9 +113,24 @@ const char* kFixedColumns[] = {"manifest",
                                "auto_inlier_distance_d",
                                "label"};
 
+// `text` right-aligned in `width`, or "-" when there is no value (every run failed to run).
+std::string Cell(const std::vector<double>& values, const std::string& text, int width) {
+  return absl::StrFormat("%*s", width, values.empty() ? "-" : text);
+}
+
+bool Perturbs(const EvalArgs& args) {
+  return args.angle_deg != 0.0 || args.translation_d != 0.0 || args.uniform_rotation ||
+         args.translation_max_d != 0.0;
+}
+
 int RunEval(const EvalArgs& args) {
   auto registration = args.flags.ToOptions();
   if (!registration.ok()) return Fail(registration.status());
+  for (const auto& [flag, path] :
+       {std::pair{"--out", &args.out}, std::pair{"--json", &args.json}}) {
+    if (path->empty() || *path == "-") continue;
+    if (absl::Status s = CheckWritable(flag, *path); !s.ok()) return Fail(s);
+  }
   EvaluationOptions options;
   options.registration = *registration;
   options.perturbation = {args.angle_deg, args.translation_d, args.perturb_seed,
@@ -131,11 +148,23 @@ int RunEval(const EvalArgs& args) {
   std::vector<std::string> extra_columns;
   std::vector<std::string> rows;
   std::map<Method, std::vector<double>> rmse_by_method, time_by_method;
-  std::map<Method, int> successes, runs;
+  std::map<Method, int> successes, runs, errors;
+  std::vector<std::string> failures;  // one line per run that could not run
   ProgressPrinter progress;
   for (const std::string& path : args.manifests) {
     auto manifest = ReadManifest(path);
     if (!manifest.ok()) return Fail(manifest.status());
+    const auto without_start =
+        std::count_if(manifest->problems.begin(), manifest->problems.end(),
+                      [](const RegistrationProblem& p) { return !p.initial.has_value(); });
+    if (without_start > 0 && !Perturbs(args)) {
+      std::fprintf(stderr,
+                   "mlsreg eval: warning: %s: %ld of %zu problems have no init column and no "
+                   "--perturb-* flag is given, so they start at the ground truth: their errors "
+                   "only show how far a method drifts from it (give --perturb-angle and "
+                   "--perturb-translation to start elsewhere)\n",
+                   path.c_str(), static_cast<long>(without_start), manifest->problems.size());
+    }
     for (const std::string& c : manifest->extra_columns) {
       if (std::find(extra_columns.begin(), extra_columns.end(), c) == extra_columns.end()) {
         extra_columns.push_back(c);
@@ -158,6 +187,10 @@ int RunEval(const EvalArgs& args) {
                                     p.target_path};
       ++runs[o.method];
       if (!o.status.ok()) {
+        ++errors[o.method];
+        failures.push_back(absl::StrFormat("mlsreg eval: %s (%s, %s): %s", p.id,
+                                           MethodName(o.method), path,
+                                           std::string(o.status.message())));
         f.push_back(std::string(o.status.message()));
         f.resize(std::size(kFixedColumns) - 1);
       } else {
@@ -236,26 +269,38 @@ int RunEval(const EvalArgs& args) {
     if (!out) return Fail(absl::UnavailableError("cannot write '" + args.out + "'"));
   }
 
+  for (const std::string& line : failures) std::fprintf(stderr, "%s\n", line.c_str());
   std::FILE* summary = args.out.empty() || args.out == "-" ? stderr : stdout;
-  std::fprintf(summary, "%-18s %5s %9s %14s %14s %12s\n", "method", "runs", "success",
+  std::fprintf(summary, "%-18s %5s %9s %7s %14s %14s %12s\n", "method", "runs", "success", "errors",
                "median RMSE/d", "mean RMSE/d", "median time");
   for (Method m : options.methods) {
     const std::vector<double>& e = rmse_by_method[m];
     double mean = 0.0;
     for (double v : e) mean += v;
     if (!e.empty()) mean /= static_cast<double>(e.size());
-    std::fprintf(summary, "%-18s %5d %4d/%-4d %14.4f %14.4f %10.3f s\n",
-                 std::string(MethodName(m)).c_str(), runs[m], successes[m], runs[m], Median(e),
-                 mean, Median(time_by_method[m]));
+    std::fprintf(summary, "%-18s %5d %4d/%-4d %7d %s %s %s\n", std::string(MethodName(m)).c_str(),
+                 runs[m], successes[m], runs[m], errors[m],
+                 Cell(e, absl::StrFormat("%.4f", Median(e)), 14).c_str(),
+                 Cell(e, absl::StrFormat("%.4f", mean), 14).c_str(),
+                 Cell(e, absl::StrFormat("%.3f s", Median(time_by_method[m])), 12).c_str());
+  }
+  if (!failures.empty()) {
+    std::fprintf(summary,
+                 "(%zu runs could not run, see above: the RMSE and time columns are over the "
+                 "runs that did)\n",
+                 failures.size());
   }
   if (!args.json.empty()) {
     nlohmann::json methods = nlohmann::json::array();
     for (Method m : options.methods) {
-      methods.push_back({{"method", std::string(MethodName(m))},
-                         {"runs", runs[m]},
-                         {"successes", successes[m]},
-                         {"median_rmse_d", Median(rmse_by_method[m])},
-                         {"median_time_s", Median(time_by_method[m])}});
+      const bool ran = !rmse_by_method[m].empty();
+      methods.push_back(
+          {{"method", std::string(MethodName(m))},
+           {"runs", runs[m]},
+           {"successes", successes[m]},
+           {"errors", errors[m]},
+           {"median_rmse_d", ran ? nlohmann::json(Median(rmse_by_method[m])) : nullptr},
+           {"median_time_s", ran ? nlohmann::json(Median(time_by_method[m])) : nullptr}});
     }
     std::ofstream out(args.json);
     out << nlohmann::json{{"methods", methods}}.dump(2) << "\n";
@@ -274,7 +319,9 @@ CommandRunner AddEvalCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "eval", "run methods over manifests with ground truth (id,source,target,gt[,init])");
   cmd->add_option("--pairs", args->manifests, "manifest CSV (repeatable)")->required();
-  cmd->add_option("--methods", args->methods, "comma-separated methods")->capture_default_str();
+  cmd->add_option("--methods", args->methods,
+                  "comma-separated methods (default: the default method, auto)")
+      ->capture_default_str();
   cmd->add_option("--out", args->out, "results CSV (default: stdout)");
   cmd->add_option("--json", args->json, "write the summary per method as JSON to this file");
   cmd->add_option("--label", args->label, "written in every row's label column (e.g. a variant)");

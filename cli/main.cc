@@ -3,6 +3,7 @@
 #include <vector>
 
 #include "cli/commands.h"
+#include "cli/exit_codes.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"mlsreg: rigid point-cloud registration with MLS correspondences in Sparse ICP",
@@ -26,9 +27,16 @@ int main(int argc, char** argv) {
   add(&mlsreg::cli::AddStatsCommand);
   add(&mlsreg::cli::AddManualCommand);
   add(&mlsreg::cli::AddCompletionCommand);
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // --help and --version end the parse with code 0; any other parse error (an unknown flag, a
+    // value out of range, no command) is bad usage, the documented code 2, not CLI11's own.
+    const int code = app.exit(e);
+    return code == 0 ? mlsreg::cli::kExitOk : mlsreg::cli::kExitBadInput;
+  }
   for (auto& [sub, run] : commands) {
     if (sub->parsed()) return run();
   }
-  return 2;
+  return mlsreg::cli::kExitBadInput;
 }

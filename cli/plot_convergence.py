@@ -2,13 +2,20 @@
 # mlsreg binary and run with python3 + matplotlib; reads the JSON the CLI writes:
 #   {"title", "iteration", "stage", "candidate", "rmse_d", "gt_rmse_d" (or null), "matched",
 #    "rejected_normal", "rejected_curvature", "rejected_distance", "invalid"}
+#
+# Exit codes the CLI turns into one line each (python_script.h): 3 when matplotlib is missing,
+# 4 when the picture cannot be written; the reason is the last line on stderr.
 import json
 import sys
 
-import matplotlib
+try:
+    import matplotlib
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: E402
+except ImportError as e:
+    print(f"{sys.executable} cannot import matplotlib ({e})", file=sys.stderr)
+    sys.exit(3)
 
 data = json.load(open(sys.argv[1]))
 out = sys.argv[2]
@@ -51,4 +58,8 @@ top.legend(fontsize=8, loc="upper right")
 bottom.legend(fontsize=8, loc="upper right")
 fig.suptitle(data["title"], fontsize=10)
 fig.tight_layout()
-fig.savefig(out, dpi=110)
+try:
+    fig.savefig(out, dpi=110)
+except (OSError, ValueError) as e:
+    print(f"cannot write '{out}': {getattr(e, 'strerror', None) or e}", file=sys.stderr)
+    sys.exit(4)

@@ -1,5 +1,6 @@
 #include "cli/python_script.h"
 
+#include <fcntl.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -20,6 +21,16 @@ absl::Status WriteFile(const std::filesystem::path& path, std::string_view bytes
   out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   if (!out) return absl::UnavailableError(absl::StrCat("cannot write ", path.string()));
   return absl::OkStatus();
+}
+
+// The last non-blank line of a text file, or "" when there is none.
+std::string LastLine(const std::string& path) {
+  std::ifstream in(path);
+  std::string line, last;
+  while (std::getline(in, line)) {
+    if (line.find_first_not_of(" \t\r") != std::string::npos) last = line;
+  }
+  return last;
 }
 
 }  // namespace
@@ -53,18 +64,34 @@ absl::Status RunPythonScript(std::string_view what, std::string_view script, std
   std::vector<char*> raw;
   for (std::string& a : argv) raw.push_back(a.data());
   raw.push_back(nullptr);
+  // The script's stderr goes to a file: a traceback is for us, one line is for the user.
+  const std::string errors = (dir / "stderr.txt").string();
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, errors.c_str(),
+                                   O_WRONLY | O_CREAT | O_TRUNC, 0600);
   pid_t pid = 0;
-  if (posix_spawnp(&pid, python.c_str(), nullptr, nullptr, raw.data(), environ) != 0) {
-    return absl::FailedPreconditionError(absl::StrCat(
-        std::string(what), ": needs python3 with matplotlib (apt-get install python3-matplotlib)"));
+  const int spawned = posix_spawnp(&pid, python.c_str(), &actions, nullptr, raw.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  if (spawned != 0) {
+    return absl::FailedPreconditionError(
+        absl::StrCat(std::string(what), ": cannot run ", python,
+                     "; it needs python3 with matplotlib (apt-get install python3-matplotlib, or "
+                     "set MLSREG_PYTHON to a python3 that has it)"));
   }
   int status = 0;
-  if (waitpid(pid, &status, 0) != pid || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-    return absl::FailedPreconditionError(
-        absl::StrCat(std::string(what),
-                     ": the plotting script failed (see above; it needs python3-matplotlib)"));
+  const bool waited = waitpid(pid, &status, 0) == pid;
+  if (waited && WIFEXITED(status) && WEXITSTATUS(status) == 0) return absl::OkStatus();
+  const std::string reason = LastLine(errors);
+  const int code = waited && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  if (code == 3) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        std::string(what), ": needs matplotlib: ", reason,
+        " (apt-get install python3-matplotlib, or set MLSREG_PYTHON to a python3 that has it)"));
   }
-  return absl::OkStatus();
+  if (code == 4) return absl::UnavailableError(absl::StrCat(std::string(what), ": ", reason));
+  return absl::UnavailableError(absl::StrCat(std::string(what), ": the drawing script failed",
+                                             reason.empty() ? "" : ": ", reason));
 }
 
 }  // namespace mlsreg::cli

@@ -12,8 +12,10 @@ namespace mlsreg::cli {
 
 // Writes `script` and `input` (its data, e.g. JSON) to a temporary directory and runs
 // `python3 SCRIPT INPUT args...` (the interpreter: $MLSREG_PYTHON, else /usr/bin/python3, else
-// python3 on PATH). FAILED_PRECONDITION naming `what` when python3 or matplotlib
-// is missing or the script fails (its stderr is passed through).
+// python3 on PATH). The script's stderr is kept, not shown: a failure is one message naming
+// `what`. FAILED_PRECONDITION when python3 cannot be run or the script exits 3 (matplotlib is
+// missing: how to install it); UNAVAILABLE when it exits 4 (its output cannot be written) or
+// fails otherwise, with the last line the script wrote on stderr.
 absl::Status RunPythonScript(std::string_view what, std::string_view script, std::string_view input,
                              const std::vector<std::string>& args);
 

@@ -49,10 +49,20 @@ std::string FormatVerification(const VerificationScore& v) {
                          VerdictName(v.verdict), evidence);
 }
 
-std::string FormatResult(const RegistrationResult& result, const std::optional<PoseError>& error) {
-  std::string out = absl::StrFormat("result: %s after %d iterations in %.3f s (d = %.6g)\n",
-                                    TerminationName(result.termination), result.iterations,
-                                    result.timings.total, result.sampling_distance);
+std::string FormatTermination(const RegistrationResult& result, int max_iterations) {
+  if (result.termination == Termination::kMaxIterations) {
+    return absl::StrFormat("max_iterations (%d per phase) after %d iterations in total",
+                           max_iterations, result.iterations);
+  }
+  return absl::StrFormat("%s after %d iterations", TerminationName(result.termination),
+                         result.iterations);
+}
+
+std::string FormatResult(const RegistrationResult& result, const std::optional<PoseError>& error,
+                         int max_iterations) {
+  std::string out = absl::StrFormat("result: %s in %.3f s (d = %.6g)\n",
+                                    FormatTermination(result, max_iterations), result.timings.total,
+                                    result.sampling_distance);
   if (result.mls_radius_d > 0.0) {
     out += result.mls_radius_auto
                ? absl::StrFormat(

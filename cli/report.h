@@ -15,8 +15,15 @@ namespace mlsreg::cli {
 // 0.31 s"
 std::string FormatIteration(const IterationReport& report);
 
-// The final summary block (termination, transform, errors against ground truth when known).
-std::string FormatResult(const RegistrationResult& result, const std::optional<PoseError>& error);
+// "max_iterations (100 per phase) after 115 iterations in total": the limit holds for each
+// phase (MLS-SICP's coarse and fine; each stage of auto), the count is of every iteration run.
+// Other terminations: "converged after 15 iterations".
+std::string FormatTermination(const RegistrationResult& result, int max_iterations);
+
+// The final summary block (termination, transform, errors against ground truth when known);
+// `max_iterations` is the limit the registration ran with.
+std::string FormatResult(const RegistrationResult& result, const std::optional<PoseError>& error,
+                         int max_iterations);
 // One line: the verdict and its evidence.
 std::string FormatVerification(const VerificationScore& score);
 nlohmann::json VerificationJson(const VerificationScore& score);

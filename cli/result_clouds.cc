@@ -10,8 +10,6 @@
 namespace mlsreg::cli {
 namespace {
 
-using Rgb = std::array<std::uint8_t, 3>;
-
 // Blue at 0, green at 0.5, red at 1 (clamped).
 Rgb Ramp(double t) {
   t = std::clamp(t, 0.0, 1.0);
@@ -27,6 +25,7 @@ PointCloud Moved(const PointCloud& cloud, const Matrix4& transform) {
   out.points.reserve(cloud.size());
   for (const Vec3& p : cloud.points) out.points.push_back(r * p + t);
   for (const Vec3& n : cloud.normals) out.normals.push_back(r * n);
+  out.colors = cloud.colors;
   return out;
 }
 
@@ -34,17 +33,18 @@ PointCloud Moved(const PointCloud& cloud, const Matrix4& transform) {
 
 absl::Status WriteAlignedCloud(const std::string& path, const PointCloud& source,
                                const Matrix4& transform, const Target& target) {
-  const PointCloud aligned = Moved(source, transform);
+  PointCloud aligned = Moved(source, transform);
   const std::vector<double> distances = DistancesToMlsSurface(target, aligned.points);
-  PointAttributes attributes;
   std::vector<float> distance_d(distances.size());
-  attributes.colors.resize(distances.size());
   for (std::size_t i = 0; i < distances.size(); ++i) {
     distance_d[i] = static_cast<float>(distances[i] / target.sampling_distance());
-    attributes.colors[i] = Ramp(distance_d[i] / kDistanceRampMaxD);
   }
+  if (!aligned.has_colors()) {  // the source's own colours are kept; else the ramp
+    for (float d : distance_d) aligned.colors.push_back(Ramp(d / kDistanceRampMaxD));
+  }
+  PointAttributes attributes;
   attributes.scalars.emplace_back("distance_d", std::move(distance_d));
-  return WritePlyWithAttributes(aligned, attributes, path);
+  return WriteCloudWithAttributes(aligned, attributes, path);
 }
 
 absl::Status WriteMergedCloud(const std::string& path, const PointCloud& source,
@@ -53,13 +53,13 @@ absl::Status WriteMergedCloud(const std::string& path, const PointCloud& source,
   const std::size_t n = merged.size();
   merged.points.insert(merged.points.end(), target.points().begin(), target.points().end());
   merged.normals.clear();  // written only when every point has one
-  PointAttributes attributes;
   std::vector<float> which(merged.size(), 0.0f);
   std::fill(which.begin() + static_cast<std::ptrdiff_t>(n), which.end(), 1.0f);
-  attributes.colors.assign(n, Rgb{255, 140, 0});
-  attributes.colors.resize(merged.size(), Rgb{70, 130, 180});
+  merged.colors.assign(n, Rgb{255, 140, 0});
+  merged.colors.resize(merged.size(), Rgb{70, 130, 180});
+  PointAttributes attributes;
   attributes.scalars.emplace_back("cloud", std::move(which));
-  return WritePlyWithAttributes(merged, attributes, path);
+  return WriteCloudWithAttributes(merged, attributes, path);
 }
 
 }  // namespace mlsreg::cli

@@ -85,17 +85,25 @@ CommandRunner AddServeCommand(CLI::App& app) {
   Bind(*cmd, *args, "--admin-token", "MLSREG_ADMIN_TOKEN", &C::admin_token,
        "bearer token required by DeleteTarget");
   Bind(*cmd, *args, "--token-file", "MLSREG_TOKEN_FILE", &C::token_file,
-       "read the bearer token from this file (keeps it out of ps)");
+       "read the bearer token from this file (keeps it out of ps); one token per line gives "
+       "each client its own");
   Bind(*cmd, *args, "--admin-token-file", "MLSREG_ADMIN_TOKEN_FILE", &C::admin_token_file,
        "read the admin token from this file");
   Bind(*cmd, *args, "--max-inflight-bytes", "MLSREG_MAX_INFLIGHT_BYTES", &C::max_inflight_bytes,
        "request data held outside the cache; beyond: RESOURCE_EXHAUSTED");
+  Bind(*cmd, *args, "--max-streams-per-connection", "MLSREG_MAX_STREAMS_PER_CONNECTION",
+       &C::max_streams_per_connection,
+       "HTTP/2 streams (any RPC) one connection may have open; further calls wait in the client");
+  Bind(*cmd, *args, "--max-streams-per-client", "MLSREG_MAX_STREAMS_PER_CLIENT",
+       &C::max_streams_per_client,
+       "open uploads + registrations per bearer token (one token per client in --token-file)");
   Bind(*cmd, *args, "--max-streams-per-peer", "MLSREG_MAX_STREAMS_PER_PEER",
-       &C::max_streams_per_peer, "open uploads + registrations per client host");
+       &C::max_streams_per_peer,
+       "open uploads + registrations per client host: a ceiling above the per-client limit");
   Bind(*cmd, *args, "--idle-timeout-seconds", "MLSREG_IDLE_TIMEOUT_SECONDS",
        &C::idle_timeout_seconds, "end a stream whose client is silent this long");
   Bind(*cmd, *args, "--reflection", "MLSREG_REFLECTION", &C::reflection,
-       "serve gRPC reflection (answers without a token)");
+       "serve gRPC reflection (off by default: it answers without a token)");
   Bind(*cmd, *args, "--drain-seconds", "MLSREG_DRAIN_SECONDS", &C::drain_seconds,
        "on SIGTERM, time running registrations get before they are cancelled");
   return [args] { return RunServe(*args); };

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "absl/strings/str_format.h"
+#include "cli/cloud_files.h"
 #include "cli/commands.h"
 #include "cli/connection_flags.h"
 #include "cli/exit_codes.h"
@@ -47,7 +48,8 @@ nlohmann::json TargetJson(const TargetInfo& t) {
 struct TargetsArgs {
   ConnectionFlags connection;
   std::string id, file;
-  bool json = false;  // print JSON instead of text
+  std::vector<std::string> columns;  // of a text or .npy file
+  bool json = false;                 // print JSON instead of text
 };
 
 }  // namespace
@@ -59,7 +61,8 @@ CommandRunner AddTargetsCommand(CLI::App& app) {
   CLI::App* upload =
       cmd->add_subcommand("upload", "upload a cloud as a target: upload --id NAME FILE");
   upload->add_option("--id", args->id, "target id ([A-Za-z0-9._-], 1-128 chars)")->required();
-  upload->add_option("file", args->file, "cloud file (PLY, PCD, XYZ/CSV)")->required();
+  upload->add_option("file", args->file, "cloud file (PLY, PCD, XYZ/CSV, NPY)")->required();
+  AddColumnsFlag(*upload, &args->columns);
   CLI::App* get = cmd->add_subcommand("get", "show one target");
   get->add_option("id", args->id, "target id")->required();
   CLI::App* list = cmd->add_subcommand("list", "list all targets");
@@ -73,7 +76,10 @@ CommandRunner AddTargetsCommand(CLI::App& app) {
     auto client = args->connection.Connect();
     if (!client.ok()) return Fail("targets", client.status());
     if (upload->parsed()) {
-      auto cloud = ReadPointCloud(args->file);
+      if (absl::Status s = CheckColumnsApply(args->columns, {args->file}); !s.ok()) {
+        return Fail("targets upload", s);
+      }
+      auto cloud = ReadCloudNoting("targets upload", args->file, args->columns);
       if (!cloud.ok()) return Fail("targets upload", cloud.status());
       auto info = (*client)->UploadTarget(args->id, *cloud);
       if (!info.ok()) return Fail("targets upload", info.status());

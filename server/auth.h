@@ -7,8 +7,10 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "absl/status/status.h"
+#include "absl/status/statusor.h"
 
 namespace grpc {
 class ServerContextBase;
@@ -23,19 +25,27 @@ enum class Access {
 
 class TokenAuthenticator {
  public:
-  TokenAuthenticator(std::string token, std::string admin_token)
-      : token_(std::move(token)), admin_token_(std::move(admin_token)) {}
+  // `tokens`: the user tokens, one per line (a token file may give each client its own; blank
+  // lines are skipped). Empty: no user token is required.
+  TokenAuthenticator(std::string_view tokens, std::string admin_token);
 
-  // `authorization` is the metadata value, nullopt when absent. UNAUTHENTICATED when a required
-  // token is missing or no configured token matches; PERMISSION_DENIED when a valid user token
-  // (or no token, if none is required) asks for admin access.
-  absl::Status Check(std::optional<std::string_view> authorization, Access access) const;
-
+  // `authorization` is the metadata value, nullopt when absent. Returns who is calling, as the
+  // per-client stream limit counts them: "token N" for the N-th user token (from 1), "admin" for
+  // the admin token, "" when no token was presented (none is required). UNAUTHENTICATED when a
+  // required token is missing or no configured token matches; PERMISSION_DENIED when a valid
+  // user token (or no token, if none is required) asks for admin access.
+  absl::StatusOr<std::string> Authenticate(std::optional<std::string_view> authorization,
+                                           Access access) const;
   // The same, reading the metadata of a call.
-  absl::Status Check(const grpc::ServerContextBase& context, Access access) const;
+  absl::StatusOr<std::string> Authenticate(const grpc::ServerContextBase& context,
+                                           Access access) const;
+
+  absl::Status Check(std::optional<std::string_view> authorization, Access access) const {
+    return Authenticate(authorization, access).status();
+  }
 
  private:
-  std::string token_;
+  std::vector<std::string> tokens_;
   std::string admin_token_;
 };
 

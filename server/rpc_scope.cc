@@ -35,7 +35,11 @@ RpcScope::RpcScope(ServiceContext& context, std::string_view rpc, grpc::ServerCo
                    Admission admission)
     : context_(context), call_(call), rpc_(rpc), start_(std::chrono::steady_clock::now()) {
   context_.state.Enter();
-  admission_ = call_ != nullptr ? context_.auth.Check(*call_, admission.access) : absl::OkStatus();
+  if (call_ != nullptr) {
+    absl::StatusOr<std::string> client = context_.auth.Authenticate(*call_, admission.access);
+    admission_ = client.status();
+    if (client.ok()) client_ = *std::move(client);
+  }
   if (admission_.ok() && admission.refused_while_draining && !context_.state.accepting()) {
     admission_ = absl::UnavailableError("server is shutting down");
   }

@@ -47,6 +47,8 @@ class RpcScope {
 
   // OK, or why the call is refused (UNAUTHENTICATED, PERMISSION_DENIED, UNAVAILABLE).
   const absl::Status& admission() const { return admission_; }
+  // Who is calling, by the token it presented ("token 2", "admin"; "" without a token).
+  const std::string& client() const { return client_; }
   // Finish(admission()) when the call is refused, else Finish(body()).
   grpc::Status Run(const std::function<absl::Status()>& body);
   grpc::Status Finish(const absl::Status& status);
@@ -58,6 +60,7 @@ class RpcScope {
   std::string target_id_;
   std::string request_id_;
   std::string details_;
+  std::string client_;
   std::chrono::steady_clock::time_point start_;
   absl::Status admission_;
 };

@@ -108,12 +108,13 @@ absl::StatusOr<std::unique_ptr<MlsregServer>> MlsregServer::Start(const ServerCo
   server->jobs_ = std::make_unique<JobPool>(c.workers, c.queue_capacity);
   server->auth_ = std::make_unique<TokenAuthenticator>(c.token, c.admin_token);
   server->inflight_ = std::make_unique<InFlightBudget>(c.max_inflight_bytes);
-  server->peer_streams_ = std::make_unique<PeerStreamLimiter>(c.max_streams_per_peer);
+  server->streams_ =
+      std::make_unique<StreamLimiter>(c.max_streams_per_client, c.max_streams_per_peer);
   server->idle_ = std::make_unique<IdleWatchdog>(
       std::chrono::milliseconds(static_cast<std::int64_t>(c.idle_timeout_seconds * 1000.0)));
   server->context_ = std::make_unique<ServiceContext>(ServiceContext{
       c, *server->cache_, *server->jobs_, server->stats_, server->metrics_, *server->auth_,
-      server->state_, *server->inflight_, *server->peer_streams_, *server->idle_, Clock::now()});
+      server->state_, *server->inflight_, *server->streams_, *server->idle_, Clock::now()});
   server->services_.push_back(NewTargetService(*server->context_));
   server->services_.push_back(NewRegistrationService(*server->context_));
   server->services_.push_back(NewStatsService(*server->context_));
@@ -124,6 +125,12 @@ absl::StatusOr<std::unique_ptr<MlsregServer>> MlsregServer::Start(const ServerCo
   grpc::ServerBuilder builder;
   builder.SetOption(std::make_unique<ReflectionOption>(c.reflection));
   builder.AddListeningPort(c.listen, *credentials, &server->port_);
+  // gRPC sets SO_REUSEPORT by default: a second server on a bound port would start and share
+  // its connections with the first. Without it, binding a port in use fails.
+  builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
+  // HTTP/2 streams one connection may have open at once: a client's further calls on it wait
+  // (in the client) for one to end, and no other connection is affected.
+  builder.AddChannelArgument(GRPC_ARG_MAX_CONCURRENT_STREAMS, c.max_streams_per_connection);
   for (const auto& service : server->services_) builder.RegisterService(service.get());
   builder.SetMaxReceiveMessageSize(c.max_message_bytes);
   builder.SetMaxSendMessageSize(c.max_message_bytes);
@@ -135,7 +142,9 @@ absl::StatusOr<std::unique_ptr<MlsregServer>> MlsregServer::Start(const ServerCo
   builder.SetResourceQuota(quota);
   server->server_ = builder.BuildAndStart();
   if (!server->server_ || server->port_ == 0) {
-    return absl::UnavailableError(absl::StrCat("cannot listen on '", c.listen, "'"));
+    return absl::UnavailableError(
+        absl::StrCat("listen: cannot listen on '", c.listen,
+                     "': the address is in use (another server?) or cannot be bound here"));
   }
   grpc::HealthCheckServiceInterface* health = server->server_->GetHealthCheckService();
   for (const char* name : kServiceNames) health->SetServingStatus(name, true);
@@ -165,7 +174,7 @@ std::string MlsregServer::RenderMetrics() const {
   s.target_build_seconds = cache.build_seconds;
   s.inflight_bytes = inflight_->used();
   s.inflight_budget_bytes = inflight_->budget();
-  s.open_streams = peer_streams_->open_streams();
+  s.open_streams = streams_->open_streams();
   s.serving = state_.accepting();
   s.uptime_seconds = std::chrono::duration<double>(Clock::now() - context_->started).count();
   return metrics_.Render(s);

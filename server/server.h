@@ -35,9 +35,9 @@ class MlsregServer {
   ~MlsregServer();  // Shutdown()
 
   int port() const { return port_; }
-  std::string address() const;                            // host:port actually listened on
-  const ServerConfig& config() const { return config_; }  // resolved (workers, queue) values
-  int open_streams() const { return peer_streams_->open_streams(); }  // uploads + registrations
+  std::string address() const;                                   // host:port actually listened on
+  const ServerConfig& config() const { return config_; }         // resolved (workers, queue) values
+  int open_streams() const { return streams_->open_streams(); }  // uploads + registrations
   std::uint64_t inflight_bytes() const { return inflight_->used(); }
   // The Prometheus exposition served at /metrics (server/metrics.h).
   std::string RenderMetrics() const;
@@ -65,7 +65,7 @@ class MlsregServer {
   std::unique_ptr<TokenAuthenticator> auth_;
   ServingState state_;
   std::unique_ptr<InFlightBudget> inflight_;
-  std::unique_ptr<PeerStreamLimiter> peer_streams_;
+  std::unique_ptr<StreamLimiter> streams_;
   std::unique_ptr<IdleWatchdog> idle_;
   std::unique_ptr<ServiceContext> context_;
   std::vector<std::unique_ptr<grpc::Service>> services_;

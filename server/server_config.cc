@@ -3,6 +3,7 @@
 #include <arpa/inet.h>
 #include <netinet/in.h>
 
+#include <algorithm>
 #include <cctype>
 #include <fstream>
 #include <functional>
@@ -78,6 +79,10 @@ const std::map<std::string, FieldSetter>& Setters() {
       {"drain_seconds", Set("drain_seconds", &ServerConfig::drain_seconds)},
       {"max_inflight_bytes", Set("max_inflight_bytes", &ServerConfig::max_inflight_bytes)},
       {"max_streams_per_peer", Set("max_streams_per_peer", &ServerConfig::max_streams_per_peer)},
+      {"max_streams_per_client",
+       Set("max_streams_per_client", &ServerConfig::max_streams_per_client)},
+      {"max_streams_per_connection",
+       Set("max_streams_per_connection", &ServerConfig::max_streams_per_connection)},
       {"idle_timeout_seconds", Set("idle_timeout_seconds", &ServerConfig::idle_timeout_seconds)},
       {"reflection", Set("reflection", &ServerConfig::reflection)},
       {"token_file", Set("token_file", &ServerConfig::token_file)},
@@ -94,6 +99,45 @@ std::string HostOf(const std::string& listen) {
   }
   const std::size_t colon = listen.rfind(':');
   return colon == std::string::npos ? listen : listen.substr(0, colon);
+}
+
+// "--max-streams-per-peer" for the key max_streams_per_peer: `mlsreg serve`'s flag.
+std::string FlagOf(const char* key) {
+  std::string flag = absl::StrCat("--", key);
+  std::replace(flag.begin(), flag.end(), '_', '-');
+  return flag;
+}
+
+// InvalidArgument "<key> (<flag>): <rule>", so both a config file and a command line are named.
+absl::Status Bad(const char* key, const std::string& rule) {
+  return absl::InvalidArgumentError(absl::StrCat(key, " (", FlagOf(key), "): ", rule));
+}
+
+// A listening address: unix sockets as gRPC spells them, else HOST:PORT with a port in
+// [0, 65535] (0: any free port). gRPC would take a larger number modulo 65536.
+absl::Status CheckListenAddress(const char* key, const std::string& address) {
+  if (address.rfind("unix:", 0) == 0 || address.rfind("unix-abstract:", 0) == 0) {
+    return absl::OkStatus();
+  }
+  const std::size_t colon = address.rfind(':');
+  const std::size_t bracket = address.rfind(']');
+  if (colon == std::string::npos || (bracket != std::string::npos && colon < bracket)) {
+    return Bad(key, absl::StrCat("'", address, "' is not HOST:PORT"));
+  }
+  const std::string port = address.substr(colon + 1);
+  const bool digits =
+      !port.empty() && port.size() <= 9 && std::all_of(port.begin(), port.end(), [](char c) {
+        return std::isdigit(static_cast<unsigned char>(c));
+      });
+  if (!digits) {
+    return Bad(key, absl::StrCat("'", address, "' has no port number after the last ':'"));
+  }
+  if (std::stoi(port) > 65535) {
+    return Bad(key, absl::StrCat("port ", port, " in '", address,
+                                 "' is out of range: ports are 0 to 65535 (0: any free port)"));
+  }
+  if (colon == 0) return Bad(key, absl::StrCat("'", address, "' has no host before the port"));
+  return absl::OkStatus();
 }
 
 }  // namespace
@@ -159,16 +203,23 @@ absl::Status LoadTokenFiles(ServerConfig* config) {
     if (value.empty()) {
       return absl::InvalidArgumentError(absl::StrCat(what, ": file '", *file, "' is empty"));
     }
-    *token = value;
+    if (token == &config->admin_token && value.find('\n') != std::string::npos) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(what, ": file '", *file, "' holds more than one line: one admin token"));
+    }
+    *token = value;  // token_file: one user token per line (TokenAuthenticator splits them)
   }
   return absl::OkStatus();
 }
 
 absl::Status Validate(const ServerConfig& c) {
-  auto bad = [](const char* field, const std::string& rule) {
-    return absl::InvalidArgumentError(absl::StrCat(field, ": ", rule));
-  };
-  if (c.listen.empty()) return bad("listen", "must be host:port");
+  auto bad = [](const char* field, const std::string& rule) { return Bad(field, rule); };
+  if (absl::Status s = CheckListenAddress("listen", c.listen); !s.ok()) return s;
+  if (!c.metrics_listen.empty()) {
+    if (absl::Status s = CheckListenAddress("metrics_listen", c.metrics_listen); !s.ok()) {
+      return s;
+    }
+  }
   if (c.workers < 0 || c.workers > 1024) return bad("workers", "must be in [0, 1024]");
   if (c.job_threads < 1 || c.job_threads > 256) return bad("job_threads", "must be in [1, 256]");
   if (c.queue_capacity < 0 || c.queue_capacity > 1'000'000) {
@@ -184,6 +235,8 @@ absl::Status Validate(const ServerConfig& c) {
   if (c.max_concurrent_rpcs < 4) return bad("max_concurrent_rpcs", "must be >= 4");
   if (c.max_inflight_bytes == 0) return bad("max_inflight_bytes", "must be > 0");
   if (c.max_streams_per_peer < 1) return bad("max_streams_per_peer", "must be >= 1");
+  if (c.max_streams_per_client < 1) return bad("max_streams_per_client", "must be >= 1");
+  if (c.max_streams_per_connection < 1) return bad("max_streams_per_connection", "must be >= 1");
   if (!(c.idle_timeout_seconds >= 0.05 && c.idle_timeout_seconds <= 86400.0)) {
     return bad("idle_timeout_seconds", "must be in [0.05, 86400]");
   }

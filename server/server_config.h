@@ -28,8 +28,14 @@ struct ServerConfig {
   int max_concurrent_rpcs = 256;          // gRPC sync-server threads (unary RPCs, health)
   // Request data held outside the cache (uploads being received, sources being registered).
   std::uint64_t max_inflight_bytes = std::uint64_t{1} << 30;
-  // Streaming calls (uploads, registrations) one peer host may have open at once.
-  int max_streams_per_peer = 64;
+  // Fair admission of streams (uploads, registrations, alignments), from the finest to the
+  // coarsest: HTTP/2 streams per connection (every RPC counts; further calls wait in the
+  // client), streaming calls per authenticated client (per bearer token: give each client its
+  // own token in token_file), and a ceiling per peer host, above those with headroom, for
+  // everybody behind one address (a NAT, clients without tokens of their own).
+  int max_streams_per_connection = 32;
+  int max_streams_per_client = 64;
+  int max_streams_per_peer = 128;
   // A streaming call that waits this long for its client (a message, or reading one) is ended.
   double idle_timeout_seconds = 30.0;
   // gRPC server reflection (grpcurl without .proto files). Off by default: it answers without
@@ -42,7 +48,8 @@ struct ServerConfig {
   bool allow_insecure_remote = false;
   // Bearer tokens: `token` is required by every RPC when set; `admin_token` by DeleteTarget.
   // The *_file forms read the token from a file (trailing whitespace dropped), so it does not
-  // show in `ps`; a token and its file are exclusive.
+  // show in `ps`; a token and its file are exclusive. token_file may hold several tokens, one
+  // per line: each is a client of its own for max_streams_per_client.
   std::string token, admin_token;
   std::string token_file, admin_token_file;
   // On shutdown, running registrations get this long to finish before they are cancelled.
@@ -53,7 +60,9 @@ struct ServerConfig {
 // wrongly typed values are InvalidArgument naming the key, so a typo never goes unnoticed.
 absl::Status LoadConfigFile(const std::string& path, ServerConfig* config);
 
-// Range and consistency checks. Plaintext on a non-loopback address without
+// Range and consistency checks; an InvalidArgument names the key and its flag ("listen
+// (--listen): ..."). listen and metrics_listen must be HOST:PORT with a port in [0, 65535] (or a
+// unix socket for listen). Plaintext on a non-loopback address without
 // allow_insecure_remote is FailedPrecondition; a TLS or token file that cannot be read is
 // InvalidArgument naming the file.
 absl::Status Validate(const ServerConfig& config);

@@ -24,7 +24,7 @@ struct ServiceContext {
   const TokenAuthenticator& auth;
   ServingState& state;
   InFlightBudget& inflight;
-  PeerStreamLimiter& peer_streams;
+  StreamLimiter& streams;
   IdleWatchdog& idle;
   std::chrono::steady_clock::time_point started;
 };

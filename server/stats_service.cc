@@ -34,7 +34,7 @@ class StatsServiceImpl final : public v1::StatsService::Service {
     response->set_serving(c_.state.accepting());
     response->set_inflight_bytes(c_.inflight.used());
     response->set_inflight_budget_bytes(c_.inflight.budget());
-    response->set_open_streams(c_.peer_streams.open_streams());
+    response->set_open_streams(c_.streams.open_streams());
     return scope.Finish(absl::OkStatus());
   }
 

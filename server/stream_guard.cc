@@ -23,44 +23,59 @@ std::string PeerHost(const std::string& peer) {
   return peer.substr(0, colon);
 }
 
-PeerStreamLimiter::Ticket& PeerStreamLimiter::Ticket::operator=(Ticket&& other) noexcept {
+StreamLimiter::Ticket& StreamLimiter::Ticket::operator=(Ticket&& other) noexcept {
   if (this != &other) {
-    if (limiter_) limiter_->Close(host_);
+    if (limiter_) limiter_->Close(host_, client_);
     limiter_ = other.limiter_;
     host_ = std::move(other.host_);
+    client_ = std::move(other.client_);
     other.limiter_ = nullptr;
   }
   return *this;
 }
 
-PeerStreamLimiter::Ticket::~Ticket() {
-  if (limiter_) limiter_->Close(host_);
+StreamLimiter::Ticket::~Ticket() {
+  if (limiter_) limiter_->Close(host_, client_);
 }
 
-absl::StatusOr<PeerStreamLimiter::Ticket> PeerStreamLimiter::Open(const std::string& peer) {
+absl::StatusOr<StreamLimiter::Ticket> StreamLimiter::Open(const std::string& peer,
+                                                          const std::string& client) {
   std::string host = PeerHost(peer);
   std::lock_guard<std::mutex> lock(mutex_);
-  int& open = open_[host];
-  if (open >= max_per_peer_) {
-    return RetryLater(absl::ResourceExhaustedError(absl::StrCat(
-                          "too many open streams from ", host, " (limit ", max_per_peer_,
-                          " per peer, max_streams_per_peer); finish or cancel some first")),
-                      std::chrono::milliseconds(1000));
+  const auto refuse = [](const std::string& why) {
+    return RetryLater(absl::ResourceExhaustedError(why), std::chrono::milliseconds(1000));
+  };
+  if (!client.empty()) {
+    if (const auto it = by_client_.find(client);
+        it != by_client_.end() && it->second >= max_per_client_) {
+      return refuse(absl::StrCat("too many open streams for this client (", client, "; limit ",
+                                 max_per_client_,
+                                 " per client, max_streams_per_client); finish or cancel some "
+                                 "first"));
+    }
   }
-  ++open;
+  if (const auto it = by_host_.find(host); it != by_host_.end() && it->second >= max_per_host_) {
+    return refuse(absl::StrCat("too many open streams from ", host, " (limit ", max_per_host_,
+                               " per host, max_streams_per_peer); finish or cancel some first"));
+  }
+  ++by_host_[host];
+  if (!client.empty()) ++by_client_[client];
   ++total_;
-  return Ticket(this, std::move(host));
+  return Ticket(this, std::move(host), client);
 }
 
-void PeerStreamLimiter::Close(const std::string& host) {
+void StreamLimiter::Close(const std::string& host, const std::string& client) {
   std::lock_guard<std::mutex> lock(mutex_);
-  const auto it = open_.find(host);
-  if (it == open_.end()) return;
+  const auto release = [](std::map<std::string, int>& counts, const std::string& key) {
+    const auto it = counts.find(key);
+    if (it != counts.end() && --it->second == 0) counts.erase(it);
+  };
+  release(by_host_, host);
+  if (!client.empty()) release(by_client_, client);
   --total_;
-  if (--it->second == 0) open_.erase(it);
 }
 
-int PeerStreamLimiter::open_streams() const {
+int StreamLimiter::open_streams() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return total_;
 }

@@ -1,8 +1,13 @@
 // Defences against clients that open streams and then go quiet. Streaming calls (uploads and
 // registrations) run on gRPC's callback API, so a quiet client holds no thread, only its call's
-// memory; these two bound that too:
-//  - PeerStreamLimiter: at most N streaming calls open per peer host (the address without its
-//    port); the next one is RESOURCE_EXHAUSTED (retry later) at once.
+// memory; these bound that too, fairly:
+//  - per connection: HTTP/2's SETTINGS_MAX_CONCURRENT_STREAMS (max_streams_per_connection, set
+//    on the server builder): a client's further calls on that connection wait in the client
+//    until one of its streams ends; nobody else's connection is affected;
+//  - StreamLimiter: at most N streaming calls open per authenticated client (per bearer token:
+//    one token per client), and a ceiling per peer host (the address without its port) above
+//    that, for clients without a token of their own; the next one is RESOURCE_EXHAUSTED (retry
+//    later) at once.
 //  - IdleWatchdog: a call that has waited on its client (for a message, or for it to read one)
 //    longer than the idle timeout is ended with DEADLINE_EXCEEDED naming what it waited for.
 #pragma once
@@ -25,14 +30,19 @@ namespace mlsreg::server {
 // "ipv4:127.0.0.1:5000" -> "ipv4:127.0.0.1"; "ipv6:[::1]:5000" -> "ipv6:[::1]".
 std::string PeerHost(const std::string& peer);
 
-class PeerStreamLimiter {
+class StreamLimiter {
  public:
-  explicit PeerStreamLimiter(int max_per_peer) : max_per_peer_(max_per_peer) {}
+  StreamLimiter(int max_per_client, int max_per_host)
+      : max_per_client_(max_per_client), max_per_host_(max_per_host) {}
 
+  // A stream's place in the counts; given back when destroyed (or replaced).
   class Ticket {
    public:
     Ticket() = default;
-    Ticket(Ticket&& other) noexcept : limiter_(other.limiter_), host_(std::move(other.host_)) {
+    Ticket(Ticket&& other) noexcept
+        : limiter_(other.limiter_),
+          host_(std::move(other.host_)),
+          client_(std::move(other.client_)) {
       other.limiter_ = nullptr;
     }
     Ticket& operator=(Ticket&& other) noexcept;
@@ -41,22 +51,25 @@ class PeerStreamLimiter {
     ~Ticket();
 
    private:
-    friend class PeerStreamLimiter;
-    Ticket(PeerStreamLimiter* limiter, std::string host)
-        : limiter_(limiter), host_(std::move(host)) {}
-    PeerStreamLimiter* limiter_ = nullptr;
-    std::string host_;
+    friend class StreamLimiter;
+    Ticket(StreamLimiter* limiter, std::string host, std::string client)
+        : limiter_(limiter), host_(std::move(host)), client_(std::move(client)) {}
+    StreamLimiter* limiter_ = nullptr;
+    std::string host_, client_;
   };
 
-  // RESOURCE_EXHAUSTED (retry later) when `peer` already has max_per_peer streams open.
-  absl::StatusOr<Ticket> Open(const std::string& peer);
+  // A place for a stream from `peer` ("ipv4:10.0.0.1:5000") called by `client` (who its token
+  // says it is, "" without a token). RESOURCE_EXHAUSTED (retry later) when that client already
+  // has max_per_client streams open, or its host max_per_host.
+  absl::StatusOr<Ticket> Open(const std::string& peer, const std::string& client);
   int open_streams() const;
 
  private:
-  void Close(const std::string& host);
-  const int max_per_peer_;
+  void Close(const std::string& host, const std::string& client);
+  const int max_per_client_;
+  const int max_per_host_;
   mutable std::mutex mutex_;
-  std::map<std::string, int> open_;
+  std::map<std::string, int> by_host_, by_client_;
   int total_ = 0;
 };
 

@@ -3,7 +3,7 @@
 // reactions run briefly on gRPC's threads, with the CPU work on the JobPool. The base owns
 //  - the call's lifetime: a shared_ptr to itself, dropped in OnDone, so workers and the idle
 //    watchdog can hold weak references and never touch a freed call;
-//  - admission at the start (token, draining, the per-peer stream limit);
+//  - admission at the start (token, draining, the per-client and per-host stream limits);
 //  - finishing exactly once, whoever asks first (a reaction, a worker, the watchdog);
 //  - the idle timeout (stream_guard.h) and the status of a call its client abandoned.
 #pragma once
@@ -73,6 +73,9 @@ class StreamingCall : public Reactor, public IdleWatched {
       if (finished_) return false;
       finished_ = true;
       if constexpr (!std::is_same_v<Before, std::nullptr_t>) before();
+      // The stream's place is free once its client can see the status: the client may open
+      // the next one at once (gRPC destroys the call itself later).
+      ticket_ = {};
     }
     EndWait();
     this->Finish(scope_.Finish(status));
@@ -104,13 +107,13 @@ class StreamingCall : public Reactor, public IdleWatched {
  private:
   absl::Status Admit() {
     if (!scope_.admission().ok()) return scope_.admission();  // token and draining
-    auto ticket = c_.peer_streams.Open(ctx_->peer());
+    auto ticket = c_.streams.Open(ctx_->peer(), scope_.client());
     if (!ticket.ok()) return ticket.status();
     ticket_ = *std::move(ticket);
     return absl::OkStatus();
   }
 
-  PeerStreamLimiter::Ticket ticket_;
+  StreamLimiter::Ticket ticket_;  // guarded by mutex_ once the call has started
   std::shared_ptr<StreamingCall> self_;
 };
 

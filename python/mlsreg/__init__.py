@@ -9,14 +9,17 @@ Local registration::
     result.transform                                                  # 4x4 ndarray
 
 Clouds are NumPy arrays of shape (N, 3) or (N, 6) (points and normals), an mlsreg.Cloud, or an
-open3d.geometry.PointCloud. Registration parameters are keyword arguments named as in the
-library's parameter table (``mlsreg.parameters()``), with its defaults and ranges.
+Open3D point cloud (``open3d.geometry.PointCloud`` or ``open3d.t.geometry.PointCloud``).
+Registration parameters are keyword arguments named as in the library's parameter table
+(``mlsreg.parameters()``: its names, such as ``min_normal_dot``, or the CLI's flags with ``_``
+for ``-``, such as ``tau_n``), with its defaults and ranges.
 
 Remote registration goes through ``mlsreg.Client`` (the C++ client library: retries, replica
 routing, chunked uploads).
 
-Errors: bad input raises ValueError with the library's message; an unknown target LookupError;
-everything else mlsreg.Error (``.code`` is the status code's name).
+Errors: bad input raises ValueError with the library's message; a missing file
+FileNotFoundError; an unknown target LookupError; everything else mlsreg.Error (``.code`` is the
+status code's name).
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ import dataclasses
 import json
 import queue
 import threading
+import warnings
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Callable, Iterator, Optional, Sequence
 
@@ -35,22 +39,33 @@ from ._mlsreg import Error, Target, methods, parameters, read_poses
 
 __all__ = [
     "Cloud", "Target", "IterationReport", "Result", "PoseError", "BatchOutcome", "Client",
-    "RegistrationStream", "Error", "read_cloud", "register", "evaluate", "methods", "parameters",
+    "RegistrationStream", "Error", "read_cloud", "write_cloud", "register", "evaluate", "methods",
+    "parameters",
     "TRACE_DTYPE", "AlignResult", "align_scans", "merge_scans", "read_poses",
 ]
 
 __version__ = "0.1.0"
 
 
+def __dir__():
+    """The package's API only (not the modules it imports, such as numpy and json)."""
+    return sorted(__all__ + ["__version__"])
+
+
 @dataclasses.dataclass
 class Cloud:
-    """A scan read from a file: points (N, 3) float64, normals (N, 3) or None, and metadata."""
+    """A scan read from a file: points (N, 3) float64, normals (N, 3) or None, colors (N, 3)
+    uint8 or None, and metadata. ``notes`` say how the file's fields were read (fields ignored,
+    unnamed columns read from the data). Registration uses the points only: normals are
+    estimated from them, and the colours are carried to files written with write_cloud."""
 
     points: np.ndarray
     normals: Optional[np.ndarray] = None
+    colors: Optional[np.ndarray] = None
     viewpoint: Optional[np.ndarray] = None  # the sensor origin, when the file says
     intrinsics: Optional[dict] = None  # pinhole camera of an organised scan
     path: Optional[str] = None
+    notes: list = dataclasses.field(default_factory=list)
 
     @property
     def array(self) -> np.ndarray:
@@ -66,9 +81,22 @@ class Cloud:
         return self.array if dtype is None else self.array.astype(dtype)
 
 
-def read_cloud(path: str) -> Cloud:
-    """Reads a .ply, .pcd, .xyz/.txt/.csv or .npy cloud (with normals and metadata if present)."""
-    return Cloud(path=str(path), **_mlsreg.read_cloud(str(path)))
+def read_cloud(path: str, columns: Optional[Sequence[str]] = None) -> Cloud:
+    """Reads a .ply, .pcd, .xyz/.txt/.csv or .npy cloud (with normals, colours and metadata if
+    present). ``columns`` names the columns of a text or .npy file (e.g. ``["x", "y", "z", "r",
+    "g", "b"]``; other names are read and ignored); by default a text file's header line or the
+    column count decides. Each of the cloud's ``notes`` is also issued as a UserWarning."""
+    cloud = Cloud(path=str(path), **_mlsreg.read_cloud(str(path), list(columns or [])))
+    for note in cloud.notes:
+        warnings.warn(note, stacklevel=2)
+    return cloud
+
+
+def write_cloud(path: str, cloud) -> None:
+    """Writes a cloud (as register takes it: an array, a Cloud, an Open3D cloud) with its normals
+    and colours in the format the extension names: .ply, .pcd, .xyz/.txt/.csv (a header line
+    names the columns when there are more than x y z) or .npy (points and normals only)."""
+    _mlsreg.write_cloud(str(path), cloud)
 
 
 @dataclasses.dataclass
@@ -87,7 +115,7 @@ class IterationReport:
     invalid: int
     admm_iterations: int
     elapsed_seconds: float
-    transform: np.ndarray
+    transform: np.ndarray = dataclasses.field(repr=False)
 
 
 TRACE_DTYPE = np.dtype([
@@ -144,6 +172,13 @@ class Result:
         """Method auto: whether the result verified against the target's MLS surface."""
         return None if self.auto is None else bool(self.auto["verified"])
 
+    def __repr__(self) -> str:
+        last = f", rmse_d={self.trace['rmse_d'][-1]:.4g}" if len(self.trace) else ""
+        verified = "" if self.verified is None else f", verified={self.verified}"
+        return (f"Result(method={self.method!r}, termination={self.termination!r}, "
+                f"iterations={self.iterations}{last}{verified}, "
+                f"seconds={self.timings.get('total', 0.0):.3g})")
+
 
 def _result(raw: dict, method: str, source) -> Result:
     raw = dict(raw)
@@ -171,8 +206,10 @@ def register(source, target, method: str = "auto", init=None,
     ``source`` and ``target`` are (N, 3) or (N, 6) arrays, Clouds or Open3D point clouds; pass a
     ``Target`` to reuse a target's prepared surface. ``callback(report)`` is called after every
     iteration; returning False cancels (the result then says ``termination == "cancelled"``).
-    ``params`` are the parameter table's names (``mlsreg.parameters()``); None means auto.
-    The GIL is released while registering.
+    ``params`` are the parameter table's names or the CLI's flags with ``_`` for ``-``
+    (``mlsreg.parameters()``: ``min_normal_dot=0.5`` or ``tau_n=0.5``); None means auto.
+    ``threads`` (1 to 256) are used inside the registration and the target build; the result
+    does not depend on them. The GIL is released while registering.
     """
     raw = _mlsreg._register(source, target, method, init, _adapt(callback), threads, params)
     return _result(raw, method, source)
@@ -242,6 +279,10 @@ class BatchOutcome:
     @property
     def ok(self) -> bool:
         return self.error is None
+
+    def __repr__(self) -> str:
+        outcome = f"result={self.result!r}" if self.ok else f"error={self.error!r}"
+        return f"BatchOutcome(target_id={self.job.get('target_id')!r}, {outcome})"
 
 
 class RegistrationStream:

@@ -1,5 +1,7 @@
 #include "python/src/cloud_arrays.h"
 
+#include <cmath>
+
 #include "absl/strings/str_cat.h"
 #include "python/src/status_errors.h"
 
@@ -53,6 +55,35 @@ std::vector<Vec3> Rows(const py::array_t<double, py::array::c_style>& array, int
 }
 
 bool IsNone(py::handle h) { return !h || h.is_none(); }
+
+// Colours of `n` points: integers 0-255, or floats in [0, 1] (Open3D); empty for an empty array.
+std::vector<Rgb> ColorsFromPython(py::handle object, std::size_t n, const std::string& field) {
+  py::array array = py::module_::import("numpy").attr("asarray")(object);
+  if (array.size() == 0) return {};
+  const char kind = array.dtype().kind();
+  if (array.ndim() != 2 || array.shape(1) != 3 || static_cast<std::size_t>(array.shape(0)) != n) {
+    Invalid(absl::StrCat(field, ": colours must be an (N, 3) array, one row per point"));
+  }
+  if (kind != 'u' && kind != 'i' && kind != 'f') {
+    Invalid(absl::StrCat(field, ": dtype ", std::string(py::str(array.dtype())),
+                         " is not a colour type; pass uint8 (0-255) or floats in [0, 1]"));
+  }
+  const bool unit_scale = kind == 'f';
+  const auto values = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(array);
+  const auto view = values.unchecked<2>();
+  std::vector<Rgb> colors(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (int c = 0; c < 3; ++c) {
+      const double v = view(i, c);
+      if (!(v >= 0.0 && v <= (unit_scale ? 1.0 : 255.0))) {
+        Invalid(absl::StrCat(field, ": colour ", v, " of point ", i, " is not in ",
+                             unit_scale ? "[0, 1]" : "[0, 255]"));
+      }
+      colors[i][c] = static_cast<std::uint8_t>(std::lround(unit_scale ? 255.0 * v : v));
+    }
+  }
+  return colors;
+}
 
 // An attribute that may be a value or, as Open3D's has_normals(), absent or empty.
 py::object OptionalAttribute(py::handle object, const char* name) {
@@ -113,9 +144,29 @@ PinholeIntrinsics IntrinsicsFromPython(py::handle object, std::string_view field
   return k;
 }
 
+// An open3d.t.geometry.PointCloud: tensors in its `point` map, converted with .numpy().
+PointCloud CloudFromTensorMap(py::handle object, std::string_view field) {
+  py::object map = object.attr("point");
+  const auto tensor = [&](const char* key) -> py::object {
+    if (!map.attr("__contains__")(key).cast<bool>()) return py::none();
+    return map.attr("__getitem__")(key).attr("numpy")();
+  };
+  py::object positions = tensor("positions");
+  if (IsNone(positions)) Invalid(absl::StrCat(Field(field), ": the tensor cloud has no positions"));
+  PointCloud cloud = CloudFromArrays(positions, tensor("normals"), field);
+  if (py::object colors = tensor("colors"); !IsNone(colors)) {
+    cloud.colors = ColorsFromPython(colors, cloud.size(), absl::StrCat(Field(field), ".colors"));
+  }
+  return cloud;
+}
+
 PointCloud CloudFromPython(py::handle object, std::string_view field) {
   if (IsNone(object))
     Invalid(absl::StrCat(Field(field), ": is None; pass an (N, 3) or (N, 6) array"));
+  if (!py::isinstance<py::array>(object) && !py::hasattr(object, "points") &&
+      py::hasattr(object, "point")) {
+    return CloudFromTensorMap(object, field);
+  }
   if (py::isinstance<py::array>(object) || !py::hasattr(object, "points")) {
     return CloudFromArrays(object, py::none(), field);
   }
@@ -125,6 +176,13 @@ PointCloud CloudFromPython(py::handle object, std::string_view field) {
     normals = py::none();
   }
   PointCloud cloud = CloudFromArrays(object.attr("points"), normals, field);
+  py::object colors = OptionalAttribute(object, "colors");
+  if (py::hasattr(object, "has_colors") && !object.attr("has_colors")().cast<bool>()) {
+    colors = py::none();
+  }
+  if (!IsNone(colors)) {
+    cloud.colors = ColorsFromPython(colors, cloud.size(), absl::StrCat(Field(field), ".colors"));
+  }
   if (py::object k = OptionalAttribute(object, "intrinsics"); !IsNone(k)) {
     cloud.intrinsics = IntrinsicsFromPython(k, absl::StrCat(Field(field), ".intrinsics"));
   }
@@ -150,6 +208,16 @@ py::dict CloudToPython(const PointCloud& cloud) {
   py::dict d;
   d["points"] = ToArray(cloud.points);
   d["normals"] = cloud.has_normals() ? py::object(ToArray(cloud.normals)) : py::none();
+  if (cloud.has_colors()) {
+    py::array_t<std::uint8_t> colors({static_cast<py::ssize_t>(cloud.size()), py::ssize_t{3}});
+    auto view = colors.mutable_unchecked<2>();
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+      for (int c = 0; c < 3; ++c) view(i, c) = cloud.colors[i][c];
+    }
+    d["colors"] = colors;
+  } else {
+    d["colors"] = py::none();
+  }
   if (cloud.viewpoint) {
     d["viewpoint"] = ToArray({*cloud.viewpoint}).attr("reshape")(3);
   } else {

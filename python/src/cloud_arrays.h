@@ -1,7 +1,9 @@
 // NumPy arrays <-> PointCloud. A cloud comes from Python as
 //  - an array of shape (N, 3) (points) or (N, 6) (points and normals), float64 or float32;
-//  - or any object with `points` (and optionally `normals`, `intrinsics`, `viewpoint`)
-//    attributes: mlsreg.Cloud, or an open3d.geometry.PointCloud.
+//  - or any object with `points` (and optionally `normals`, `colors`, `intrinsics`, `viewpoint`)
+//    attributes: mlsreg.Cloud, or an open3d.geometry.PointCloud;
+//  - or an open3d.t.geometry.PointCloud (its `point` map: positions, normals, colors).
+// Colours are uint8 (0-255) or integer arrays, or float arrays in [0, 1] (Open3D's).
 // Anything else (another dtype, another shape) is a ValueError naming the field; the library then
 // validates the cloud (finite coordinates, unit normals, enough points) with its own messages.
 #pragma once
@@ -26,8 +28,8 @@ PinholeIntrinsics IntrinsicsFromPython(py::handle object, std::string_view field
 
 // An (N, 3) float64 array (a copy).
 py::array_t<double> ToArray(const std::vector<Vec3>& vectors);
-// {"points": (N,3), "normals": (N,3) or None, "viewpoint": (3,) or None, "intrinsics": dict or
-// None}.
+// {"points": (N,3), "normals": (N,3) or None, "colors": (N,3) uint8 or None, "viewpoint": (3,)
+// or None, "intrinsics": dict or None}.
 py::dict CloudToPython(const PointCloud& cloud);
 
 }  // namespace mlsreg::python

@@ -5,8 +5,10 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <algorithm>
 #include <functional>
 #include <optional>
+#include <string_view>
 
 #include "absl/strings/str_cat.h"
 #include "mlsreg/client/client.h"
@@ -36,7 +38,16 @@ struct TargetHandle {
   TargetPtr target;
 };
 
+// threads of a call: [1, 256], as the CLI's --threads.
+void CheckThreads(int threads) {
+  if (threads < 1 || threads > 256) {
+    throw StatusError(
+        absl::InvalidArgumentError(absl::StrCat("threads must be in [1, 256], not ", threads)));
+  }
+}
+
 TargetPtr BuildTarget(PointCloud cloud, int threads) {
+  CheckThreads(threads);
   TargetOptions options;
   options.threads = threads;
   absl::StatusOr<TargetPtr> built;
@@ -65,6 +76,7 @@ TargetPtr TargetFromPython(py::handle target, int threads) {
 
 py::dict Register(py::object source, py::object target, const std::string& method, py::object init,
                   py::object callback, int threads, const py::dict& params) {
+  CheckThreads(threads);
   const RegistrationOptions options = OptionsFromPython(method, params);
   const Matrix4 initial = TransformFromPython(init, "init");
   PointCloud source_cloud = CloudFromPython(source, "source");
@@ -102,17 +114,49 @@ py::dict TargetInfoToPython(const TargetInfo& info) {
 void BindLocal(py::module_& m) {
   m.def(
       "read_cloud",
-      [](const std::string& path) {
-        absl::StatusOr<PointCloud> cloud;
+      [](const std::string& path, const std::vector<std::string>& columns) {
+        absl::StatusOr<CloudFile> file;
         {
           py::gil_scoped_release release;
-          cloud = ReadPointCloud(path);
+          file = ReadCloudFile(path, ReadOptions{columns});
         }
-        return CloudToPython(ValueOrThrow(std::move(cloud)));
+        if (absl::IsNotFound(file.status())) {  // a missing file, as open() raises it
+          PyErr_SetString(PyExc_FileNotFoundError, std::string(file.status().message()).c_str());
+          throw py::error_already_set();
+        }
+        CloudFile read = ValueOrThrow(std::move(file));
+        py::dict out = CloudToPython(read.cloud);
+        out["notes"] = read.notes;
+        return out;
       },
-      py::arg("path"));
+      py::arg("path"), py::arg("columns"));
+  m.def(
+      "write_cloud",
+      [](const std::string& path, py::object cloud) {
+        const PointCloud converted = CloudFromPython(cloud, "cloud");
+        absl::Status written;
+        {
+          py::gil_scoped_release release;
+          written = WritePointCloud(converted, path);
+        }
+        ThrowIfError(written);
+      },
+      py::arg("path"), py::arg("cloud"));
 
-  py::class_<TargetHandle>(m, "Target")
+  py::class_<TargetHandle>(m, "Target", R"doc(A target cloud prepared once for many registrations.
+
+Target(points, normals=None, intrinsics=None, threads=1) builds the target's kd-tree, its
+sampling distance d (the unit of every *_d length), normals and surface variation, its noise
+estimate, its MLS patches and its FPFH features (for method auto's global candidates). Build it
+once and pass it to mlsreg.register as often as needed; it is immutable, so threads may share it.
+
+points: (N, 3) or (N, 6) float array, an mlsreg.Cloud or an Open3D point cloud.
+normals: ignored by registration (normals are estimated from the points).
+intrinsics: {width, height, fx, fy, cx, cy} of an organised pinhole scan (rc-bl, rc-p).
+threads: threads of the build, in [1, 256] (the result does not depend on it).
+
+Attributes: size, points, normals (estimated), sampling_distance, noise_sigma_d, memory_bytes,
+build_seconds, organised.)doc")
       .def(py::init(&MakeTarget), py::arg("points"), py::arg("normals") = py::none(),
            py::arg("intrinsics") = py::none(), py::arg("threads") = 1)
       .def_property_readonly("size",
@@ -160,10 +204,18 @@ void BindLocal(py::module_& m) {
     const RegistrationOptions defaults;
     py::list rows;
     for (const ParameterSpec& spec : ParameterTable()) {
+      // "must be in [1, 100000]" -> "[1, 100000]": the values it takes.
+      std::string range = spec.Rule();
+      for (std::string_view prefix : {"must be ", "in "}) {
+        if (range.starts_with(prefix)) range.erase(0, prefix.size());
+      }
+      std::string keyword(spec.flag);
+      std::replace(keyword.begin(), keyword.end(), '-', '_');
       rows.append(py::dict(
           py::arg("name") = std::string(spec.wire_field), py::arg("path") = std::string(spec.name),
-          py::arg("default") = spec.Format(spec.get(defaults)), py::arg("rule") = spec.Rule(),
-          py::arg("help") = std::string(spec.help)));
+          py::arg("flag") = "--" + std::string(spec.flag), py::arg("alias") = keyword,
+          py::arg("default") = spec.Format(spec.get(defaults)), py::arg("range") = range,
+          py::arg("rule") = spec.Rule(), py::arg("help") = std::string(spec.help)));
     }
     return rows;
   });
@@ -184,6 +236,7 @@ AlignOptions AlignOptionsFromPython(py::object poses, const std::string& pairs,
                                     const std::string& method, double min_overlap,
                                     double overlap_distance_d, int anchor, int threads,
                                     const py::dict& params) {
+  CheckThreads(threads);
   AlignOptions options;
   options.edge = OptionsFromPython(method, params);
   options.pairs = ValueOrThrow(ParseEnum<PairPolicy>(PairPolicyNames(), pairs, "pairs"));
@@ -247,6 +300,7 @@ py::dict AlignScansFromPython(const py::list& scans, py::object poses, const std
 // with d the scans' mean sampling distance unless given.
 py::dict MergeScansFromPython(const py::list& scans, const py::list& poses, bool resample,
                               double spacing_d, double radius_d, py::object d, int threads) {
+  CheckThreads(threads);
   std::vector<PointCloud> clouds;
   std::vector<Matrix4> transforms;
   for (std::size_t i = 0; i < scans.size(); ++i) {

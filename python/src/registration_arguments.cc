@@ -3,6 +3,8 @@
 #include <pybind11/eigen.h>
 #include <pybind11/numpy.h>
 
+#include <algorithm>
+#include <map>
 #include <string>
 
 #include "absl/strings/str_cat.h"
@@ -14,9 +16,26 @@
 namespace mlsreg::python {
 namespace {
 
-const ParameterSpec* FindByPythonName(std::string_view name) {
+// The CLI flag as a keyword: "--tau-n" is tau_n.
+std::string FlagKeyword(const ParameterSpec& spec) {
+  std::string keyword(spec.flag);
+  std::replace(keyword.begin(), keyword.end(), '-', '_');
+  return keyword;
+}
+
+// A parameter by any of its Python names: the wire field (min_normal_dot), the path in
+// RegistrationOptions (filter.min_normal_dot) or the CLI flag with '_' for '-' (tau_n).
+// `inverted` is set for a "no-" flag of a bool (no_warm_start=True is mls_warm_start=False).
+const ParameterSpec* FindByPythonName(std::string_view name, bool* inverted) {
   for (const ParameterSpec& spec : ParameterTable()) {
-    if (spec.wire_field == name || spec.name == name) return &spec;
+    if (spec.wire_field == name || spec.name == name) {
+      *inverted = false;
+      return &spec;
+    }
+    if (FlagKeyword(spec) == name) {
+      *inverted = spec.type == ParameterType::kBool && spec.flag.starts_with("no-");
+      return &spec;
+    }
   }
   return nullptr;
 }
@@ -61,17 +80,28 @@ py::dict AutoToPython(const AutoReport& report) {
 RegistrationOptions OptionsFromPython(std::string_view method, const py::dict& params) {
   RegistrationOptions options;
   options.method = ValueOrThrow(ParseMethod(method));
+  std::map<const ParameterSpec*, std::string> given;  // the name each parameter was given by
   for (const auto& [key, value] : params) {
     const std::string name = py::str(key).cast<std::string>();
-    const ParameterSpec* spec = FindByPythonName(name);
+    bool inverted = false;
+    const ParameterSpec* spec = FindByPythonName(name, &inverted);
     if (spec == nullptr) {
       std::vector<std::string> names;
-      for (const ParameterSpec& s : ParameterTable()) names.emplace_back(s.wire_field);
+      for (const ParameterSpec& s : ParameterTable()) {
+        names.push_back(absl::StrCat(std::string(s.wire_field), " (", FlagKeyword(s), ")"));
+      }
       throw StatusError(absl::InvalidArgumentError(
           absl::StrCat(name, ": not a registration parameter; the parameters are ",
                        absl::StrJoin(names, ", "))));
     }
-    spec->set(options, ValueOrThrow(spec->Parse(ParameterText(value), name)));
+    if (const auto [it, fresh] = given.emplace(spec, name); !fresh) {
+      throw StatusError(absl::InvalidArgumentError(
+          absl::StrCat(name, " and ", it->second, " name the same parameter (",
+                       std::string(spec->wire_field), "): give one")));
+    }
+    ParameterValue parsed = ValueOrThrow(spec->Parse(ParameterText(value), name));
+    if (inverted) parsed = !std::get<bool>(parsed);
+    spec->set(options, parsed);
   }
   return options;
 }

@@ -36,6 +36,13 @@ ask() {  # words...; the last is the one being completed
 [[ " $(ask targets upload --i) " == *" --id "* ]] || fail "completion of 'targets upload --i'"
 [[ " $(ask register --method auto --mls-pro) " == *" --mls-projection "* ]] || fail "completion after a value"
 
+# serve refuses a port gRPC would wrap modulo 65536 (99999 listened on 34463), naming the flag.
+status=0
+"$MLSREG" serve --listen 127.0.0.1:99999 > /dev/null 2> "${TMPDIR:-/tmp}/serve.err.$$" || status=$?
+grep -q -- "listen (--listen): port 99999" "${TMPDIR:-/tmp}/serve.err.$$" && [ "$status" -eq 2 ] \
+  || fail "serve --listen 127.0.0.1:99999: exit $status: $(cat "${TMPDIR:-/tmp}/serve.err.$$")"
+rm -f "${TMPDIR:-/tmp}/serve.err.$$"
+
 # --json on eval (summary file); register's is checked in cli_round_trip.sh.
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT

@@ -66,12 +66,17 @@ def scrape(url):
         return parse(response.read().decode())
 
 
-# A --metrics-listen that cannot be bound stops the server at start, naming the setting.
+# A --metrics-listen that is not HOST:PORT with a port up to 65535 is bad usage (exit 2, naming
+# the flag); one that cannot be bound stops the server at start (exit 1), naming the setting.
 for bad in ["nonsense", "127.0.0.1:99999"]:
     done = subprocess.run([MLSREG, "serve", "--listen", "127.0.0.1:0", "--metrics-listen", bad],
                           capture_output=True, text=True, timeout=60)
-    if done.returncode != 1 or f"metrics_listen: cannot listen on {bad}" not in done.stderr + done.stdout:
+    if done.returncode != 2 or "metrics_listen (--metrics-listen): " not in done.stderr:
         fail(f"--metrics-listen {bad}: exit {done.returncode}: {done.stderr}{done.stdout}")
+done = subprocess.run([MLSREG, "serve", "--listen", "127.0.0.1:0", "--metrics-listen",
+                       "192.0.2.1:9464"], capture_output=True, text=True, timeout=60)
+if done.returncode != 1 or "metrics_listen: cannot listen on 192.0.2.1:9464" not in done.stderr + done.stdout:
+    fail(f"--metrics-listen 192.0.2.1:9464: exit {done.returncode}: {done.stderr}{done.stdout}")
 
 with tempfile.TemporaryDirectory() as work:
     log_path = f"{work}/server.log"

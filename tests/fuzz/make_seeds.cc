@@ -2,6 +2,8 @@
 // Stanford bunny scan in every format the readers take, small meshes, a sidecar, and the wire
 // messages an upload and a registration send. Usage: mlsreg_fuzz_seeds SOURCE_DIR OUT_DIR
 // (OUT_DIR/<target>/seed-N files).
+#include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -53,6 +55,33 @@ std::string UploadFrames(const PointCloud& cloud, v1::ScalarType type, std::size
   return frames;
 }
 
+// A binary PCD as PCL writes it compressed (DATA binary_compressed: the fields one after the
+// other, LZF-compressed), here with literal LZF runs only; `sizes` are the fields' bytes.
+std::string CompressedPcd(const PointCloud& cloud, const std::vector<std::size_t>& sizes) {
+  const std::string binary = SerializePcd(cloud, PcdEncoding::kBinary);
+  const std::size_t data = binary.find("DATA binary\n") + 12;
+  std::size_t record = 0;
+  for (std::size_t size : sizes) record += size;
+  std::string fields;
+  for (std::size_t f = 0, offset = 0; f < sizes.size(); offset += sizes[f++]) {
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+      fields += binary.substr(data + i * record + offset, sizes[f]);
+    }
+  }
+  std::string lzf;
+  for (std::size_t at = 0; at < fields.size(); at += 32) {
+    const std::size_t n = std::min<std::size_t>(32, fields.size() - at);
+    lzf += static_cast<char>(n - 1);
+    lzf += fields.substr(at, n);
+  }
+  std::string out = binary.substr(0, data - 7) + "binary_compressed\n";
+  for (std::uint32_t word :
+       {static_cast<std::uint32_t>(lzf.size()), static_cast<std::uint32_t>(fields.size())}) {
+    for (int k = 0; k < 4; ++k) out += static_cast<char>((word >> (8 * k)) & 0xff);
+  }
+  return out + lzf;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -67,7 +96,17 @@ int main(int argc, char** argv) {
     return 1;
   }
   const PointCloud plain = Head(*scan, 40, false), with_normals = Head(*scan, 20, true);
-  std::vector<std::string> ply, pcd, xyz, npy;
+  PointCloud coloured = Head(*scan, 20, false);
+  for (std::size_t i = 0; i < coloured.size(); ++i) {
+    coloured.colors.push_back({static_cast<std::uint8_t>(10 * i), 128, 255});
+  }
+  std::vector<std::string> ply = {SerializePly(coloured, PlyEncoding::kAscii)},
+                           pcd = {SerializePcd(coloured, PcdEncoding::kAscii),
+                                  CompressedPcd(plain, {8, 8, 8}),
+                                  CompressedPcd(coloured, {8, 8, 8, 4})},
+                           xyz = {SerializeXyz(coloured), "x y z intensity\n1 2 3 0.5\n4 5 6 1\n",
+                                  "1 2 3 255 0 10\n4 5 6 0 128 7\n"},
+                           npy;
   for (const PointCloud* c : {&plain, &with_normals}) {
     for (PlyEncoding e :
          {PlyEncoding::kAscii, PlyEncoding::kBinaryLittleEndian, PlyEncoding::kBinaryBigEndian}) {

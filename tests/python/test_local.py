@@ -35,11 +35,73 @@ def test_every_written_format_reads_back_the_same_points(tmp_path, bun000):
 
 
 def test_read_cloud_errors_name_the_path(tmp_path):
-    with pytest.raises(LookupError, match="nope.ply"):
+    with pytest.raises(FileNotFoundError, match="nope.ply"):  # as open() raises it
         mlsreg.read_cloud(tmp_path / "nope.ply")
     (tmp_path / "x.abc").write_text("1 2 3\n")
     with pytest.raises(ValueError, match="abc"):
         mlsreg.read_cloud(tmp_path / "x.abc")
+
+
+def test_text_colours_are_colours_and_extra_columns_are_said(tmp_path):
+    points = np.arange(30, dtype=float).reshape(10, 3)
+    colours = np.tile([255, 0, 10], (10, 1))
+    np.savetxt(tmp_path / "cc.txt", np.hstack([points, colours]), fmt="%g", delimiter=",",
+               header="//X,Y,Z,R,G,B", comments="")
+    cloud = mlsreg.read_cloud(tmp_path / "cc.txt")
+    assert cloud.normals is None
+    assert cloud.colors.dtype == np.uint8
+    np.testing.assert_array_equal(cloud.colors, colours)
+    np.savetxt(tmp_path / "i.xyz", np.hstack([points, np.ones((10, 1))]), fmt="%g")
+    with pytest.warns(UserWarning, match="column 4 ignored"):
+        cloud = mlsreg.read_cloud(tmp_path / "i.xyz")
+    np.testing.assert_array_equal(cloud.points, points)
+    with pytest.warns(UserWarning, match=r"intensity \(column 4\)"):
+        cloud = mlsreg.read_cloud(tmp_path / "i.xyz", columns=["x", "y", "z", "intensity"])
+    assert cloud.notes and "intensity" in cloud.notes[0]
+
+
+def test_write_cloud_writes_what_the_extension_names(tmp_path, bun000):
+    points = bun000.points[:200]
+    normals = np.tile([0.0, 0.6, 0.8], (200, 1))
+    colours = np.stack([np.arange(200) % 256, np.full(200, 7), np.full(200, 250)], 1)
+    cloud = mlsreg.Cloud(points=points, normals=normals, colors=colours.astype(np.uint8))
+    for name in ["a.ply", "b.pcd", "c.xyz", "d.csv", "e.npy"]:
+        mlsreg.write_cloud(tmp_path / name, cloud)
+        back = mlsreg.read_cloud(tmp_path / name)
+        np.testing.assert_array_equal(back.points, points)
+        np.testing.assert_array_equal(back.normals, normals)
+        if name.endswith(".npy"):  # NPY files hold points and normals only
+            assert back.colors is None
+        else:
+            np.testing.assert_array_equal(back.colors, colours)
+    assert (tmp_path / "b.pcd").read_bytes().startswith(b"# .PCD")
+    assert (tmp_path / "c.xyz").read_text().startswith("x y z nx ny nz r g b\n")
+    with pytest.raises(ValueError, match="obj"):
+        mlsreg.write_cloud(tmp_path / "f.obj", cloud)
+
+
+def test_open3d_compressed_pcd_and_tensor_clouds(tmp_path, bun000, bun045, near_start):
+    o3d = pytest.importorskip("open3d")
+    legacy = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(bun000.points[:3000]))
+    rgb = np.random.default_rng(1).random((3000, 3))
+    legacy.colors = o3d.utility.Vector3dVector(rgb)
+    # PCL's (and Open3D's) compressed PCD: LZF-compressed binary fields.
+    assert o3d.io.write_point_cloud(str(tmp_path / "c.pcd"), legacy, compressed=True)
+    assert b"DATA binary_compressed" in (tmp_path / "c.pcd").read_bytes()[:300]
+    cloud = mlsreg.read_cloud(tmp_path / "c.pcd")
+    np.testing.assert_array_equal(cloud.points, bun000.points[:3000].astype(np.float32))
+    np.testing.assert_allclose(cloud.colors, rgb * 255, atol=1.0)
+    # Tensor clouds are taken as legacy ones are (they failed on "dtype object").
+    source = o3d.t.geometry.PointCloud(o3d.core.Tensor(bun000.points))
+    target = o3d.t.geometry.PointCloud(o3d.core.Tensor(bun045.points))
+    from_tensors = mlsreg.register(source, target, method="cp-sicp", init=near_start)
+    from_arrays = mlsreg.register(bun000.points, bun045.points, method="cp-sicp", init=near_start)
+    np.testing.assert_array_equal(from_tensors.transform, from_arrays.transform)
+    coloured = o3d.t.geometry.PointCloud(o3d.core.Tensor(bun000.points[:100].astype(np.float32)))
+    coloured.point["colors"] = o3d.core.Tensor(rgb[:100].astype(np.float32))
+    mlsreg.write_cloud(tmp_path / "t.ply", coloured)
+    np.testing.assert_allclose(mlsreg.read_cloud(tmp_path / "t.ply").colors, rgb[:100] * 255,
+                               atol=1.0)
 
 
 # ---- registration
@@ -94,6 +156,60 @@ def test_parameters_are_the_tables_names_with_its_defaults():
     assert rows["mls_radius_d"]["path"] == "mls.radius_d"
     assert rows["mls_radius_d"]["default"] == "auto"
     assert "auto" in mlsreg.methods() and "mls-sicp" in mlsreg.methods()
+
+
+def test_parameters_show_the_cli_flag_and_a_readable_range():
+    rows = {row["name"]: row for row in mlsreg.parameters()}
+    assert rows["min_normal_dot"]["flag"] == "--tau-n" and rows["min_normal_dot"]["alias"] == "tau_n"
+    assert rows["num_samples"]["flag"] == "--samples"
+    assert rows["max_iterations"]["range"] == "[1, 100000]"
+    assert rows["seed"]["range"] == "an integer from 0 to 18446744073709551615"
+    for row in rows.values():
+        assert row["flag"].startswith("--") and "inf" not in row["range"], row
+    # An alias never names another parameter.
+    names = {row["name"]: row for row in rows.values()}
+    names.update({row["path"]: row for row in rows.values()})
+    for row in rows.values():
+        assert names.get(row["alias"], row) is row, row["alias"]
+
+
+def test_parameters_take_the_cli_flags_names_too(bun000, bunny_target, near_start):
+    def run(**params):
+        return mlsreg.register(bun000, bunny_target, method="mls-sicp", init=near_start,
+                               max_iterations=5, **params).transform
+
+    np.testing.assert_array_equal(run(tau_n=0.5, samples=400), run(min_normal_dot=0.5,
+                                                                   num_samples=400))
+    assert not np.array_equal(run(samples=400), run(samples=300))
+    np.testing.assert_array_equal(run(no_warm_start=True), run(mls_warm_start=False))
+    with pytest.raises(ValueError, match="tau_n and min_normal_dot name the same parameter"):
+        run(min_normal_dot=0.5, tau_n=0.4)
+
+
+def test_threads_must_be_in_range(bun000, bunny_target):
+    for threads in (0, -1, 257):
+        with pytest.raises(ValueError, match=r"threads must be in \[1, 256\]"):
+            mlsreg.register(bun000, bunny_target, threads=threads)
+        with pytest.raises(ValueError, match="threads"):
+            mlsreg.Target(bun000.points[:100], threads=threads)
+
+
+def test_the_package_shows_its_api_in_short(bun000, bunny_target, near_start):
+    assert "np" not in dir(mlsreg) and "json" not in dir(mlsreg)
+    assert {"register", "Target", "read_cloud", "write_cloud", "parameters"} <= set(dir(mlsreg))
+    assert "built once" in mlsreg.Target.__doc__ or "prepared once" in mlsreg.Target.__doc__
+    result = mlsreg.register(bun000, bunny_target, init=near_start)
+    assert len(repr(result)) < 200 and repr(result).startswith("Result(method='auto'"), repr(result)
+    assert "trace" not in repr(result)
+    outcome = mlsreg.BatchOutcome(job={"target_id": "bun045", "source": bun000}, result=result)
+    assert len(repr(outcome)) < 300 and "bun045" in repr(outcome), repr(outcome)
+    failed = mlsreg.BatchOutcome(job={"target_id": "x", "source": bun000.points},
+                                 error=LookupError("target 'x' not found"))
+    assert repr(failed) == "BatchOutcome(target_id='x', error=LookupError(\"target 'x' not found\"))"
+    reports = []
+    mlsreg.register(bun000, bunny_target, init=near_start, max_iterations=1,
+                    callback=reports.append)
+    assert "transform" not in repr(reports[0]) and len(repr(reports[0])) < 400, repr(reports[0])
 
 
 def test_parameters_change_the_registration(bun000, bunny_target, near_start):

@@ -5,8 +5,10 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <thread>
 
 #include "grpc/health/v1/health.grpc.pb.h"
@@ -166,6 +168,7 @@ TEST(AbuseTest, ParametersThatWouldUnboundMemoryAreRefusedNamingTheField) {
 TEST(AbuseTest, TwoHundredSixtySilentStreamsHoldNoThreadAndOthersAreServed) {
   ServerConfig config = TestConfig();
   config.max_streams_per_peer = 1000;  // every attacker stream is admitted: the worst case
+  config.max_streams_per_connection = 1000;
   auto server = StartServer(config);
   ASSERT_NE(server, nullptr);
   const Client client = Connect(server->port());
@@ -211,6 +214,102 @@ TEST(AbuseTest, OnePeerCannotOpenMoreThanItsStreams) {
   v1::Target target;
   EXPECT_TRUE(GetTarget(client, "bunny", &target).ok());
   for (auto& s : silent) s->context.TryCancel();
+}
+
+// Streams each opened on a thread of its own, sending a Register header and then nothing. (In
+// gRPC's synchronous API a call blocks while it waits for a place on its connection, so each
+// gets a thread; the destructor cancels them all.)
+class SilentStreams {
+ public:
+  SilentStreams(const Client& client, const std::string& target_id, int count) {
+    for (int i = 0; i < count; ++i) {
+      streams_.push_back(std::make_unique<Stream>());
+      client.Prepare(&streams_.back()->context, std::chrono::seconds(60));
+    }
+    for (int i = 0; i < count; ++i) {
+      threads_.emplace_back([this, &client, target_id, stream = streams_[i].get()] {
+        auto call = client.registration->Register(&stream->context);
+        call->Write(HeaderOnlyRegister(target_id)[0]);
+        const grpc::Status status = call->Finish();
+        std::lock_guard<std::mutex> lock(mutex_);
+        stream->status = status;
+        stream->done = true;
+      });
+    }
+  }
+  ~SilentStreams() {
+    for (auto& s : streams_) s->context.TryCancel();
+    for (auto& t : threads_) t.join();
+  }
+  // Streams that ended RESOURCE_EXHAUSTED with `needle` in the message.
+  int Refused(const std::string& needle) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return static_cast<int>(std::count_if(streams_.begin(), streams_.end(), [&](const auto& s) {
+      return s->done && s->status.error_code() == grpc::StatusCode::RESOURCE_EXHAUSTED &&
+             s->status.error_message().find(needle) != std::string::npos;
+    }));
+  }
+  int Ended() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return static_cast<int>(
+        std::count_if(streams_.begin(), streams_.end(), [](const auto& s) { return s->done; }));
+  }
+
+ private:
+  struct Stream {
+    grpc::ClientContext context;
+    grpc::Status status;
+    bool done = false;
+  };
+  std::vector<std::unique_ptr<Stream>> streams_;
+  std::vector<std::thread> threads_;
+  mutable std::mutex mutex_;
+};
+
+// One bad client must not starve the others behind the same address (a NAT, a shared host):
+// its streams are limited per connection (HTTP/2) and per token before the host's ceiling,
+// which stays above them. A per-host limit alone refused the good client once the attacker
+// held the host's streams.
+TEST(AbuseTest, AnAttackerHoldingSilentStreamsDoesNotStarveAGoodClientOnTheSameHost) {
+  ServerConfig config = TestConfig();
+  config.token = "attacker-token\ngood-token";  // a token file of two lines: two clients
+  config.max_streams_per_connection = 4;
+  config.max_streams_per_client = 6;
+  config.max_streams_per_peer = 10;
+  auto server = StartServer(config);
+  ASSERT_NE(server, nullptr);
+  const Client good = ConnectOwn(server->port(), "good-token");
+  ASSERT_TRUE(Upload(good, "bunny", Bun045()).ok());
+  // 30 silent streams on one connection: 4 reach the server, the rest wait in the attacker's
+  // own client for a place on its connection.
+  const Client attacker = ConnectOwn(server->port(), "attacker-token");
+  v1::Target target;
+  ASSERT_TRUE(GetTarget(attacker, "bunny", &target).ok());  // connected: the limit is known
+  auto on_one_connection = std::make_unique<SilentStreams>(attacker, "bunny", 30);
+  ASSERT_TRUE(Eventually([&] { return server->open_streams() == 4; }, std::chrono::seconds(20)));
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  EXPECT_EQ(server->open_streams(), 4);
+  EXPECT_EQ(on_one_connection->Ended(), 0);
+  ExpectServesOthers(good, "bunny");
+  // More connections with the same token: its client's limit refuses what is beyond 6.
+  const Client second = ConnectOwn(server->port(), "attacker-token");
+  const Client third = ConnectOwn(server->port(), "attacker-token");
+  ASSERT_TRUE(GetTarget(second, "bunny", &target).ok() && GetTarget(third, "bunny", &target).ok());
+  SilentStreams more(second, "bunny", 4), still_more(third, "bunny", 4);
+  ASSERT_TRUE(Eventually(
+      [&] {
+        return more.Refused("max_streams_per_client") +
+                   still_more.Refused("max_streams_per_client") ==
+               6;
+      },
+      std::chrono::seconds(20)));
+  EXPECT_EQ(server->open_streams(), 6);
+  // The good client, on its own connection from the same host, is still served: uploads,
+  // lookups, health and registrations (streams of its own).
+  ExpectServesOthers(good, "bunny");
+  EXPECT_TRUE(Upload(good, "bunny-again", Prefix(Bun045(), 5000)).ok());
+  on_one_connection.reset();  // the attacker gives up: every place is free again
+  EXPECT_TRUE(Eventually([&] { return server->open_streams() == 2; }, std::chrono::seconds(10)));
 }
 
 TEST(AbuseTest, AStreamWhoseClientFallsSilentEndsAfterTheIdleTimeout) {

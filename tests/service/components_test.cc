@@ -107,6 +107,35 @@ TEST(ServerConfigTest, RefusesPlaintextOnRemoteAddressesAndUnreadableCertificate
   }
 }
 
+TEST(ServerConfigTest, ListenAddressesNeedAPortInRangeAndMessagesNameTheFlag) {
+  // gRPC takes 99999 modulo 65536 (it would listen on 34463): refused before anything listens.
+  for (const char* bad : {"127.0.0.1:99999", "127.0.0.1:65536", "127.0.0.1",
+                          "127.0.0.1:", "127.0.0.1:50x", "[::1]", ":50051"}) {
+    ServerConfig config;
+    config.listen = bad;
+    absl::Status s = Validate(config);
+    EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument) << bad;
+    EXPECT_NE(s.message().find("listen (--listen): "), absl::string_view::npos) << s;
+    config = ServerConfig();
+    config.metrics_listen = bad;
+    s = Validate(config);
+    EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument) << bad;
+    EXPECT_NE(s.message().find("metrics_listen (--metrics-listen): "), absl::string_view::npos)
+        << s;
+  }
+  ServerConfig config;
+  config.listen = "127.0.0.1:99999";
+  EXPECT_NE(Validate(config).message().find("port 99999"), absl::string_view::npos);
+  for (const char* good :
+       {"127.0.0.1:0", "127.0.0.1:65535", "localhost:50051", "[::1]:50051", "unix:/tmp/m.sock"}) {
+    config.listen = good;
+    EXPECT_TRUE(Validate(config).ok()) << good << ": " << Validate(config);
+  }
+  config = ServerConfig();
+  config.workers = -1;
+  EXPECT_NE(Validate(config).message().find("workers (--workers): "), absl::string_view::npos);
+}
+
 // ---------------------------------------------------------------------------- job pool
 
 TEST(JobPoolTest, AdmitsOneRunningAndCapacityQueuedJobsThenRefuses) {
@@ -212,18 +241,48 @@ TEST(InFlightBudgetTest, LeasesGrowWithTheDataAndRefusalsSayWhetherToRetry) {
   EXPECT_EQ(budget.used(), 0u);  // given back with the leases
 }
 
-TEST(PeerStreamLimiterTest, LimitsEachPeerHostNotEachConnection) {
+TEST(StreamLimiterTest, LimitsEachClientThenEachHost) {
   EXPECT_EQ(PeerHost("ipv4:127.0.0.1:40000"), "ipv4:127.0.0.1");
   EXPECT_EQ(PeerHost("ipv6:[::1]:40000"), "ipv6:[::1]");
-  PeerStreamLimiter limiter(2);
-  auto a = limiter.Open("ipv4:10.0.0.1:1000");
-  auto b = limiter.Open("ipv4:10.0.0.1:1001");
-  ASSERT_TRUE(a.ok() && b.ok());
-  auto c = limiter.Open("ipv4:10.0.0.1:1002");
-  EXPECT_EQ(c.status().code(), absl::StatusCode::kResourceExhausted);
-  EXPECT_TRUE(limiter.Open("ipv4:10.0.0.2:1000").ok());  // another host is not affected
-  { PeerStreamLimiter::Ticket gone = *std::move(a); }
-  EXPECT_TRUE(limiter.Open("ipv4:10.0.0.1:1003").ok());
+  StreamLimiter limiter(/*max_per_client=*/2, /*max_per_host=*/3);
+  // Without tokens, the host's ceiling is the limit.
+  auto a = limiter.Open("ipv4:10.0.0.1:1000", "");
+  auto b = limiter.Open("ipv4:10.0.0.1:1001", "");
+  auto c = limiter.Open("ipv4:10.0.0.1:1002", "");
+  ASSERT_TRUE(a.ok() && b.ok() && c.ok());
+  auto d = limiter.Open("ipv4:10.0.0.1:1003", "");
+  EXPECT_EQ(d.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_NE(d.status().message().find("per host, max_streams_per_peer"), absl::string_view::npos);
+  EXPECT_TRUE(limiter.Open("ipv4:10.0.0.2:1000", "").ok());  // another host is not affected
+  { StreamLimiter::Ticket gone = *std::move(a); }
+  EXPECT_TRUE(limiter.Open("ipv4:10.0.0.1:1003", "").ok());
+  // A client (token) reaches its own limit first, wherever it connects from; another client on
+  // the same host is not affected until the host's ceiling.
+  StreamLimiter fair(/*max_per_client=*/2, /*max_per_host=*/5);
+  auto x1 = fair.Open("ipv4:10.0.0.1:1", "token 1");
+  auto x2 = fair.Open("ipv4:10.0.0.9:1", "token 1");
+  ASSERT_TRUE(x1.ok() && x2.ok());
+  auto x3 = fair.Open("ipv4:10.0.0.1:2", "token 1");
+  EXPECT_EQ(x3.status().code(), absl::StatusCode::kResourceExhausted);
+  EXPECT_NE(x3.status().message().find("token 1; limit 2 per client, max_streams_per_client"),
+            absl::string_view::npos)
+      << x3.status();
+  EXPECT_EQ(RetryAfterValue(x3.status()), "1000");
+  auto y1 = fair.Open("ipv4:10.0.0.1:3", "token 2");
+  auto y2 = fair.Open("ipv4:10.0.0.1:4", "token 2");
+  EXPECT_TRUE(y1.ok() && y2.ok());
+  EXPECT_EQ(fair.open_streams(), 4);
+}
+
+TEST(TokenAuthenticatorTest, EachTokenOfAFileIsAClientOfItsOwn) {
+  const TokenAuthenticator auth("first\n\n  second  \nthird\n", "admin-secret");
+  EXPECT_EQ(*auth.Authenticate("Bearer first", Access::kUser), "token 1");
+  EXPECT_EQ(*auth.Authenticate("Bearer second", Access::kUser), "token 2");
+  EXPECT_EQ(*auth.Authenticate("Bearer third", Access::kUser), "token 3");
+  EXPECT_EQ(*auth.Authenticate("Bearer admin-secret", Access::kUser), "admin");
+  EXPECT_EQ(auth.Authenticate("Bearer first\nsecond", Access::kUser).status().code(),
+            absl::StatusCode::kUnauthenticated);
+  EXPECT_EQ(*TokenAuthenticator("", "").Authenticate(std::nullopt, Access::kUser), "");
 }
 
 // ---------------------------------------------------------------------------- registration job

@@ -118,6 +118,24 @@ absl::StatusOr<std::string> ListServicesByReflection(const Client& client) {
   return bytes;
 }
 
+// gRPC turns SO_REUSEPORT on by default: a second server on the same port started too, and
+// clients reached either one. Now the second one fails to start, saying why.
+TEST(ServerLifecycleTest, ASecondServerOnABoundPortDoesNotStart) {
+  auto first = StartServer(TestConfig());
+  ASSERT_NE(first, nullptr);
+  ServerConfig config = TestConfig();
+  config.listen = "127.0.0.1:" + std::to_string(first->port());
+  auto second = MlsregServer::Start(config);
+  ASSERT_FALSE(second.ok()) << "a second server listens on " << config.listen;
+  EXPECT_EQ(second.status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_NE(second.status().message().find("cannot listen on '" + config.listen + "'"),
+            std::string::npos)
+      << second.status();
+  EXPECT_NE(second.status().message().find("in use"), std::string::npos) << second.status();
+  // The first one still serves.
+  EXPECT_EQ(HealthStatus(Connect(first->port()).channel, ""), HealthCheckResponse::SERVING);
+}
+
 TEST(ServerLifecycleTest, ReflectionListsTheServicesWhenEnabled) {
   ServerConfig config = TestConfig();
   config.reflection = true;

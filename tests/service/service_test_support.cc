@@ -110,6 +110,14 @@ Client Connect(int port, std::string token) {
       std::move(token));
 }
 
+Client ConnectOwn(int port, std::string token) {
+  grpc::ChannelArguments args;
+  args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
+  return Connect(grpc::CreateCustomChannel("127.0.0.1:" + std::to_string(port),
+                                           grpc::InsecureChannelCredentials(), args),
+                 std::move(token));
+}
+
 namespace {
 
 std::vector<v1::CreateTargetRequest> CreateMessagesOf(const std::string& id,

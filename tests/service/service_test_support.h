@@ -68,6 +68,8 @@ struct Client {
 };
 Client Connect(std::shared_ptr<grpc::Channel> channel, std::string token = "");
 Client Connect(int port, std::string token = "");
+// A client on a TCP connection of its own (channels to the same address otherwise share one).
+Client ConnectOwn(int port, std::string token = "");
 
 // ---- targets
 // CreateTarget with the header and the payload cut into `chunk_bytes` chunks.

@@ -70,6 +70,7 @@ PointCloud MakeCloud(int size, bool with_normals, std::uint64_t seed = 7) {
 void ExpectBitExact(const PointCloud& actual, const PointCloud& expected) {
   ASSERT_EQ(actual.size(), expected.size());
   ASSERT_EQ(actual.normals.size(), expected.normals.size());
+  EXPECT_EQ(actual.colors, expected.colors);
   for (std::size_t i = 0; i < expected.size(); ++i) {
     for (int k = 0; k < 3; ++k) {
       ASSERT_EQ(std::bit_cast<std::uint64_t>(actual.points[i][k]),
@@ -228,6 +229,72 @@ TEST(Serialize, WritesTheDocumentedHeaders) {
   PointCloud simple;
   simple.points = {Vec3(0.1, -2, 3e-5)};
   EXPECT_EQ(SerializeXyz(simple), "0.10000000000000001 -2 3.0000000000000001e-05\n");
+  simple.colors = {Rgb{1, 2, 250}};
+  EXPECT_EQ(SerializeXyz(simple),
+            "x y z r g b\n0.10000000000000001 -2 3.0000000000000001e-05 1 2 250\n");
+  EXPECT_THAT(SerializeXyz(cloud), StartsWith("x y z nx ny nz\n"));
+  simple.normals = {Vec3(0, 0, 1)};
+  EXPECT_THAT(SerializePly(simple, PlyEncoding::kAscii),
+              HasSubstr("property double nz\nproperty uchar red\nproperty uchar green\n"
+                        "property uchar blue\nend_header\n"));
+  EXPECT_THAT(SerializePcd(simple, PcdEncoding::kAscii),
+              HasSubstr("FIELDS x y z normal_x normal_y normal_z rgb\nSIZE 8 8 8 8 8 8 4\n"));
+}
+
+// Colours survive every format that holds them, bit for bit beside the coordinates; NPY holds
+// none.
+TEST(RoundTrip, ColoursInEveryFormat) {
+  for (bool with_normals : {false, true}) {
+    PointCloud cloud = MakeCloud(50, with_normals);
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+      cloud.colors.push_back({static_cast<std::uint8_t>(i), static_cast<std::uint8_t>(255 - i),
+                              static_cast<std::uint8_t>(i * 7)});
+    }
+    for (const RoundTripCase& format : RoundTripCases()) {
+      SCOPED_TRACE(format.name + (with_normals ? " with normals" : ""));
+      const absl::StatusOr<PointCloud> parsed = format.parse(format.serialize(cloud));
+      ASSERT_TRUE(parsed.ok()) << parsed.status();
+      ExpectBitExact(*parsed, cloud);
+    }
+    const absl::StatusOr<PointCloud> npy = ParseNpy(SerializeNpy(cloud));
+    ASSERT_TRUE(npy.ok()) << npy.status();
+    EXPECT_FALSE(npy->has_colors());
+    EXPECT_EQ(npy->has_normals(), with_normals);
+  }
+}
+
+TEST(Ply, ReadsColoursOfAnyTypeAndNamesTheOtherProperties) {
+  const absl::StatusOr<CloudFile> file = ParseCloudFile(
+      CloudFormat::kPly,
+      "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+      "property float z\nproperty ushort red\nproperty float green\nproperty uchar blue\n"
+      "property uchar alpha\nproperty float intensity\nend_header\n"
+      "0 0 0 65535 1 7 255 0.5\n1 0 0 0 0.5 0 255 0.5\n");
+  ASSERT_TRUE(file.ok()) << file.status();
+  EXPECT_EQ(file->cloud.colors, (std::vector<Rgb>{{255, 255, 7}, {0, 128, 0}}));
+  EXPECT_EQ(file->notes,
+            std::vector<std::string>{"PLY: vertex properties read and ignored: alpha, intensity"});
+  ExpectError(ParseCloudFile(CloudFormat::kPly, "ply\n", ReadOptions{{"x", "y", "z"}}).status(),
+              absl::StatusCode::kInvalidArgument,
+              {"PLY or PCD file, whose header names its fields"});
+}
+
+TEST(Pcd, ReadsPackedColoursAsFloatOrInteger) {
+  for (const char* type : {"F", "U"}) {
+    SCOPED_TRACE(type);
+    const std::uint32_t packed = (200u << 16) | (100u << 8) | 7u;
+    char text[64];
+    std::snprintf(text, sizeof(text), "%.9g", static_cast<double>(std::bit_cast<float>(packed)));
+    const std::string value = type[0] == 'F' ? std::string(text) : absl::StrCat(packed);
+    const absl::StatusOr<CloudFile> file = ParseCloudFile(
+        CloudFormat::kPcd,
+        absl::StrCat("VERSION 0.7\nFIELDS x y z rgb intensity\nSIZE 4 4 4 4 4\nTYPE F F F ", type,
+                     " F\nCOUNT 1 1 1 1 1\nWIDTH 1\nPOINTS 1\nDATA ascii\n1 2 3 ", value,
+                     " 0.5\n"));
+    ASSERT_TRUE(file.ok()) << file.status();
+    EXPECT_EQ(file->cloud.colors, (std::vector<Rgb>{{200, 100, 7}}));
+    EXPECT_EQ(file->notes, std::vector<std::string>{"PCD: fields read and ignored: intensity"});
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -296,8 +363,13 @@ TEST_P(PlyEncodingTest, SkipsOtherPropertiesAndElements) {
   Put<std::int32_t>(&bytes, encoding, 1);
   EndInstance(&bytes, encoding);
 
-  const absl::StatusOr<PointCloud> cloud = ParsePly(bytes);
-  ASSERT_TRUE(cloud.ok()) << cloud.status();
+  const absl::StatusOr<CloudFile> file = ParseCloudFile(CloudFormat::kPly, bytes);
+  ASSERT_TRUE(file.ok()) << file.status();
+  // A red channel alone is not a colour: read and ignored like the others, and said.
+  EXPECT_EQ(file->notes, std::vector<std::string>{
+                             "PLY: vertex properties read and ignored: red, confidence, weights"});
+  const PointCloud* cloud = &file->cloud;
+  EXPECT_FALSE(cloud->has_colors());
   ASSERT_EQ(cloud->size(), 3u);
   ASSERT_TRUE(cloud->has_normals());
   for (int i = 0; i < 3; ++i) {
@@ -600,10 +672,123 @@ TEST(Pcd, DefaultsCountAndHeightAndAcceptsOldVersion) {
   EXPECT_FALSE(cloud->viewpoint.has_value());
 }
 
-TEST(PcdErrors, BinaryCompressedIsUnimplemented) {
-  ExpectError(
-      ParsePcd(absl::StrReplaceAll(AsciiPcd(""), {{"DATA ascii", "DATA binary_compressed"}})),
-      absl::StatusCode::kUnimplemented, {"line 11", "binary_compressed"});
+// A greedy LZF compressor (liblzf's format) for the tests: back references of 3 to 264 bytes
+// found in the last 2 KiB, literal runs of up to 32 bytes otherwise.
+std::string LzfCompress(std::string_view in) {
+  std::string out, literal;
+  const auto flush = [&] {
+    for (std::size_t at = 0; at < literal.size(); at += 32) {
+      const std::size_t n = std::min<std::size_t>(32, literal.size() - at);
+      out += static_cast<char>(n - 1);
+      out += literal.substr(at, n);
+    }
+    literal.clear();
+  };
+  for (std::size_t i = 0; i < in.size();) {
+    std::size_t best = 0, distance = 0;
+    for (std::size_t d = 1; d <= std::min<std::size_t>(i, 2048); ++d) {
+      std::size_t length = 0;
+      while (i + length < in.size() && length < 264 && in[i + length] == in[i - d + length]) {
+        ++length;
+      }
+      if (length > best) best = length, distance = d;
+    }
+    if (best < 3) {
+      literal += in[i++];
+      continue;
+    }
+    flush();
+    const std::size_t length = best - 2, offset = distance - 1;
+    out += static_cast<char>((std::min<std::size_t>(length, 7) << 5) | (offset >> 8));
+    if (length >= 7) out += static_cast<char>(length - 7);
+    out += static_cast<char>(offset & 0xff);
+    i += best;
+  }
+  flush();
+  return out;
+}
+
+void AppendWord(std::uint32_t word, std::string* out) {
+  for (int k = 0; k < 4; ++k) *out += static_cast<char>((word >> (8 * k)) & 0xff);
+}
+
+// SerializePcd's binary file as PCL writes it compressed: the fields one after the other
+// (sizes: 8 bytes per coordinate and normal component, 4 for rgb), LZF-compressed after their
+// two sizes.
+std::string CompressedPcd(const PointCloud& cloud) {
+  const std::string binary = SerializePcd(cloud, PcdEncoding::kBinary);
+  const std::size_t data = binary.find("DATA binary\n") + 12;
+  std::vector<std::size_t> sizes(cloud.has_normals() ? 6 : 3, 8);
+  if (cloud.has_colors()) sizes.push_back(4);
+  std::size_t record = 0;
+  for (std::size_t size : sizes) record += size;
+  std::string fields;
+  for (std::size_t f = 0, offset = 0; f < sizes.size(); offset += sizes[f++]) {
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+      fields += binary.substr(data + i * record + offset, sizes[f]);
+    }
+  }
+  const std::string compressed = LzfCompress(fields);
+  std::string out =
+      absl::StrReplaceAll(binary.substr(0, data), {{"DATA binary\n", "DATA binary_compressed\n"}});
+  AppendWord(static_cast<std::uint32_t>(compressed.size()), &out);
+  AppendWord(static_cast<std::uint32_t>(fields.size()), &out);
+  return out + compressed;
+}
+
+// PCL's default for large clouds; it was refused as unimplemented.
+TEST(Pcd, ReadsBinaryCompressedData) {
+  for (bool with_normals : {false, true}) {
+    PointCloud cloud = MakeCloud(300, with_normals);
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+      cloud.colors.push_back({static_cast<std::uint8_t>(i % 7), 10, 200});
+      if (i >= 3 && i % 5 == 0) cloud.points[i] = cloud.points[i - 1];  // repeats to compress
+    }
+    const std::string bytes = CompressedPcd(cloud);
+    ASSERT_NE(bytes.find("DATA binary_compressed\n"), std::string::npos);
+    const absl::StatusOr<PointCloud> parsed = ParsePcd(bytes);
+    ASSERT_TRUE(parsed.ok()) << parsed.status();
+    ExpectBitExact(*parsed, cloud);
+  }
+  // The decompressor copies overlapping back references byte by byte (a run of one value).
+  PointCloud flat;
+  flat.points.assign(40, Vec3(1.5, 1.5, 1.5));
+  const absl::StatusOr<PointCloud> parsed = ParsePcd(CompressedPcd(flat));
+  ASSERT_TRUE(parsed.ok()) << parsed.status();
+  EXPECT_EQ(parsed->points, flat.points);
+}
+
+TEST(PcdErrors, DamagedCompressedDataIsRefusedNamingTheCause) {
+  const std::string good = CompressedPcd(MakeCloud(20, false));
+  const std::size_t data = good.find("DATA binary_compressed\n") + 23;
+  std::string sizes_only = good.substr(0, data + 4);
+  ExpectError(ParsePcd(sizes_only), kInvalid, {"must start with its compressed and uncompressed"});
+  const auto with_sizes = [&](std::uint32_t compressed, std::uint32_t uncompressed) {
+    std::string bytes = good.substr(0, data);
+    AppendWord(compressed, &bytes);
+    AppendWord(uncompressed, &bytes);
+    return bytes + good.substr(data + 8);
+  };
+  const std::uint32_t compressed = static_cast<std::uint32_t>(good.size() - data - 8);
+  ExpectError(ParsePcd(with_sizes(compressed + 1, 480)), kInvalid,
+              {"compressed data are declared as"});
+  ExpectError(ParsePcd(with_sizes(compressed, 488)), kInvalid,
+              {"uncompressed size 488 is not POINTS x 24"});
+  ASSERT_TRUE(ParsePcd(with_sizes(compressed, 480)).ok());
+  std::string back = good;  // a back reference before the start of the output
+  back[data + 8] = static_cast<char>(0xe0);
+  ExpectError(ParsePcd(back), kInvalid, {"LZF data corrupt at byte 0", "before the start"});
+  ExpectError(ParsePcd(good.substr(0, data + 8) + std::string(1, '\x1f') + "abc"), kInvalid,
+              {"compressed data are declared as"});
+  std::string huge = good.substr(0, data);  // 4 GB from a handful of bytes
+  huge = absl::StrReplaceAll(huge,
+                             {{"WIDTH 20", "WIDTH 178956970"}, {"POINTS 20", "POINTS 178956970"}});
+  AppendWord(4, &huge);
+  AppendWord(178956970u * 24u, &huge);
+  ExpectError(ParsePcd(huge + "abcd"), kInvalid, {"LZF cannot expand 4 bytes"});
+}
+
+TEST(PcdErrors, UnknownVersion) {
   ExpectError(
       ParsePcd(absl::StrReplaceAll(AsciiPcd(kThreeVertices), {{"VERSION 0.7", "VERSION 2"}})),
       absl::StatusCode::kUnimplemented, {"line 2", "version '2'"});
@@ -704,20 +889,88 @@ TEST(Xyz, ReadsCsvWithHeaderCommentsAndMixedSeparators) {
   EXPECT_FALSE(cloud->has_normals());
 }
 
-TEST(Xyz, SixColumnsAreNormals) {
-  const absl::StatusOr<PointCloud> cloud = ParseXyz("1 2 3 0 0 5\n4 5 6 0 -2 0\n");
+TEST(Xyz, NamedNormalsAreNormalised) {
+  const absl::StatusOr<PointCloud> cloud = ParseXyz("x y z nx ny nz\n1 2 3 0 0 5\n4 5 6 0 -2 0\n");
   ASSERT_TRUE(cloud.ok()) << cloud.status();
   ASSERT_TRUE(cloud->has_normals());
+  EXPECT_FALSE(cloud->has_colors());
   EXPECT_EQ(cloud->normals[0], Vec3(0, 0, 1));
   EXPECT_EQ(cloud->normals[1], Vec3(0, -1, 0));
 }
 
-TEST(XyzErrors, ColumnCounts) {
+absl::StatusOr<CloudFile> ParseText(std::string_view text, std::vector<std::string> columns = {}) {
+  return ParseCloudFile(CloudFormat::kXyz, text, ReadOptions{std::move(columns)});
+}
+
+// CloudCompare exports "x y z r g b": the colours were read as normals and normalised.
+TEST(Xyz, ColoursAreColoursWhetherNamedOrNot) {
+  for (const char* text : {"//X,Y,Z,R,G,B\n1,2,3,255,0,10\n4,5,6,0,128,7\n",
+                           "x y z red green blue\n1 2 3 255 0 10\n4 5 6 0 128 7\n",
+                           "1 2 3 255 0 10\n4 5 6 0 128 7\n"}) {
+    SCOPED_TRACE(text);
+    const absl::StatusOr<CloudFile> file = ParseText(text);
+    ASSERT_TRUE(file.ok()) << file.status();
+    EXPECT_FALSE(file->cloud.has_normals());
+    EXPECT_EQ(file->cloud.colors, (std::vector<Rgb>{{255, 0, 10}, {0, 128, 7}}));
+    EXPECT_EQ(file->cloud.points[1], Vec3(4, 5, 6));
+  }
+  // Unnamed columns read from the data are said to be so.
+  const absl::StatusOr<CloudFile> unnamed = ParseText("1 2 3 255 0 10\n");
+  ASSERT_EQ(unnamed->notes.size(), 1u);
+  EXPECT_THAT(unnamed->notes[0], HasSubstr("columns 4-6 read as colours r g b"));
+  EXPECT_TRUE(ParseText("x y z r g b\n1 2 3 255 0 10\n")->notes.empty());
+  // Unit vectors are normals, as mlsreg's own files without a header had them.
+  const absl::StatusOr<CloudFile> normals = ParseText("1 2 3 0 0 1\n4 5 6 0.6 0.8 0\n");
+  ASSERT_TRUE(normals.ok()) << normals.status();
+  EXPECT_TRUE(normals->cloud.has_normals() && !normals->cloud.has_colors());
+  EXPECT_THAT(normals->notes[0], HasSubstr("columns 4-6 read as normals nx ny nz"));
+  // The columns given win over the data: axis-aligned "normals" named as colours.
+  const absl::StatusOr<CloudFile> named =
+      ParseText("1 2 3 0 0 1\n", {"x", "y", "z", "r", "g", "b"});
+  ASSERT_TRUE(named.ok()) << named.status();
+  EXPECT_EQ(named->cloud.colors, (std::vector<Rgb>{{0, 0, 1}}));
+  // Floats in [0, 1] are scaled.
+  const absl::StatusOr<CloudFile> unit = ParseText("x y z r g b\n1 2 3 1 0.5 0\n");
+  ASSERT_TRUE(unit.ok()) << unit.status();
+  EXPECT_EQ(unit->cloud.colors, (std::vector<Rgb>{{255, 128, 0}}));
+  // Neither unit vectors nor colours: refused, saying how to name the columns.
+  ExpectError(ParseXyz("1 2 3 0 0 5\n4 5 6 0 -2 0\n"), kInvalid,
+              {"6 unnamed columns", "neither normals", "header line"});
+  ExpectError(ParseXyz("x y z r g b\n1 2 3 300 0 0\n"), kInvalid,
+              {"line 2, point 0", "colour r is 300"});
+}
+
+TEST(Xyz, ExtraColumnsAreReadIgnoredAndNamed) {
+  const absl::StatusOr<CloudFile> intensity = ParseText("x y z intensity\n1 2 3 0.5\n4 5 6 9\n");
+  ASSERT_TRUE(intensity.ok()) << intensity.status();
+  EXPECT_EQ(intensity->cloud.size(), 2u);
+  EXPECT_FALSE(intensity->cloud.has_normals() || intensity->cloud.has_colors());
+  EXPECT_EQ(intensity->notes,
+            std::vector<std::string>{"XYZ: columns read and ignored: intensity (column 4)"});
+  const absl::StatusOr<CloudFile> unnamed = ParseText("1 2 3 0.5\n4 5 6 9\n");
+  ASSERT_TRUE(unnamed.ok()) << unnamed.status();
+  EXPECT_THAT(unnamed->notes[0], HasSubstr("column 4 ignored"));
+  const absl::StatusOr<CloudFile> given =
+      ParseText("1 2 3 0.5 7 0 0 1\n", {"x", "y", "z", "intensity", "label", "nx", "ny", "nz"});
+  ASSERT_TRUE(given.ok()) << given.status();
+  EXPECT_EQ(given->cloud.normals[0], Vec3(0, 0, 1));
+  EXPECT_THAT(given->notes[0], HasSubstr("intensity (column 4), label (column 5)"));
+  const absl::StatusOr<CloudFile> many = ParseText("1 2 3 4 5 6 7 8\n");
+  ASSERT_TRUE(many.ok()) << many.status();
+  EXPECT_THAT(many->notes[0], HasSubstr("columns 4, 5, 6, 7, 8 ignored"));
+}
+
+TEST(XyzErrors, ColumnNamesAndCounts) {
   ExpectError(ParseXyz("1 2 3\n4 5 6 7 8 9\n"), kInvalid,
               {"XYZ line 2, point 1", "has 6 fields but line 1 has 3"});
-  ExpectError(ParseXyz("# c\n1 2 3 4\n"), kInvalid, {"line 2, point 0", "has 4 fields"});
-  ExpectError(ParseXyz("1 2\n"), kInvalid, {"line 1", "has 2 fields"});
-  ExpectError(ParseXyz("1 2 3 4 5 6 7 8\n"), kInvalid, {"has 8 fields"});
+  ExpectError(ParseXyz("x y z\n1 2 3 4\n"), kInvalid,
+              {"line 2, point 0", "has 4 fields but the header line names 3"});
+  ExpectError(ParseXyz("1 2\n"), kInvalid, {"line 1", "has 2 columns"});
+  ExpectError(ParseXyz("x y nz\n1 2 3\n"), kInvalid, {"header line", "does not name x, y and z"});
+  ExpectError(ParseXyz("x y z nx\n1 2 3 4\n"), kInvalid, {"only some of nx, ny, nz"});
+  ExpectError(ParseXyz("x y z x\n1 2 3 4\n"), kInvalid, {"names column 'x' twice"});
+  ExpectError(ParseText("1 2 3\n", {"x", "y", "z", "r"}).status(), kInvalid,
+              {"the columns given", "only some of r, g, b"});
 }
 
 TEST(XyzErrors, NonNumericTokens) {
@@ -732,7 +985,8 @@ TEST(XyzErrors, NonNumericTokens) {
 TEST(XyzErrors, NonFiniteOrEmpty) {
   ExpectError(ParseXyz("1 2 3\n4 5 inf\n"), kInvalid,
               {"line 2, point 1", "coordinate z is not finite"});
-  ExpectError(ParseXyz("1 2 3 0 0 0\n"), kInvalid, {"line 1, point 0", "zero length"});
+  ExpectError(ParseXyz("x y z nx ny nz\n1 2 3 0 0 0\n"), kInvalid,
+              {"line 2, point 0", "zero length"});
   ExpectError(ParseXyz(""), kInvalid, {"XYZ file contains no points"});
   ExpectError(ParseXyz("x y z\n# nothing else\n\n"), kInvalid, {"contains no points"});
 }
@@ -775,15 +1029,16 @@ TEST_F(FileTest, WritesAndReadsEveryExtension) {
 // A PLY with a scalar field and colours reads back as the same cloud (the extra properties are
 // skipped), and its header and records hold the attributes where the PLY format puts them.
 TEST_F(FileTest, PlyWithAttributesReadsBackAndCarriesScalarsAndColours) {
-  const PointCloud cloud = MakeCloud(5, true);
+  PointCloud cloud = MakeCloud(5, true);
   PointAttributes attributes;
   attributes.scalars.emplace_back("distance_d", std::vector<float>{0.5f, 1.f, 2.f, 3.f, 4.25f});
-  for (std::uint8_t i = 0; i < 5; ++i) attributes.colors.push_back({i, 100, 200});
+  for (std::uint8_t i = 0; i < 5; ++i) cloud.colors.push_back({i, 100, 200});
   const std::string path = PathOf("attributed.ply");
-  ASSERT_TRUE(WritePlyWithAttributes(cloud, attributes, path).ok());
-  const absl::StatusOr<PointCloud> read = ReadPointCloud(path);
+  ASSERT_TRUE(WriteCloudWithAttributes(cloud, attributes, path).ok());
+  const absl::StatusOr<CloudFile> read = ReadCloudFile(path);
   ASSERT_TRUE(read.ok()) << read.status();
-  ExpectBitExact(*read, cloud);
+  ExpectBitExact(read->cloud, cloud);
+  EXPECT_THAT(read->notes[0], HasSubstr("vertex properties read and ignored: distance_d"));
   const std::string bytes = *ReadFileBytes(path);
   const std::size_t body = bytes.find("end_header\n") + 11;
   EXPECT_NE(bytes.find("property double nz\nproperty float distance_d\nproperty uchar red\n"
@@ -799,13 +1054,43 @@ TEST_F(FileTest, PlyWithAttributesReadsBackAndCarriesScalarsAndColours) {
 
   PointAttributes short_scalar;
   short_scalar.scalars.emplace_back("d", std::vector<float>{1.f});
-  ExpectError(WritePlyWithAttributes(cloud, short_scalar, path), kInvalid, {"'d'", "one value"});
+  ExpectError(WriteCloudWithAttributes(cloud, short_scalar, path), kInvalid, {"'d'", "one value"});
   PointAttributes taken;
   taken.scalars.emplace_back("red", std::vector<float>(5, 0.f));
-  ExpectError(WritePlyWithAttributes(cloud, taken, path), kInvalid, {"'red'"});
-  PointAttributes few_colours;
+  ExpectError(WriteCloudWithAttributes(cloud, taken, path), kInvalid, {"'red'"});
+  PointCloud few_colours = cloud;
   few_colours.colors.resize(2);
-  ExpectError(WritePlyWithAttributes(cloud, few_colours, path), kInvalid, {"colour"});
+  ExpectError(WriteCloudWithAttributes(few_colours, {}, path), kInvalid, {"colours"});
+  ExpectError(WriteCloudWithAttributes(cloud, {}, PathOf("a.obj")), kInvalid, {"'.obj'"});
+}
+
+// The same in every other format the extension names: the scalars are columns (or fields) named
+// where the format names them, and the cloud reads back.
+TEST_F(FileTest, AttributesInPcdXyzCsvAndNpy) {
+  PointCloud cloud = MakeCloud(4, false);
+  for (std::uint8_t i = 0; i < 4; ++i) cloud.colors.push_back({i, 50, 250});
+  PointAttributes attributes;
+  attributes.scalars.emplace_back("distance_d", std::vector<float>{0.5f, 1.f, 2.f, 1e-3f});
+  for (const char* name : {"a.pcd", "b.xyz", "c.csv", "d.txt"}) {
+    SCOPED_TRACE(name);
+    const std::string path = PathOf(name);
+    ASSERT_TRUE(WriteCloudWithAttributes(cloud, attributes, path).ok());
+    const absl::StatusOr<CloudFile> read = ReadCloudFile(path);
+    ASSERT_TRUE(read.ok()) << read.status();
+    ExpectBitExact(read->cloud, cloud);
+    EXPECT_THAT(read->notes[0], HasSubstr("distance_d"));
+  }
+  EXPECT_THAT(*ReadFileBytes(PathOf("a.pcd")),
+              HasSubstr("FIELDS x y z distance_d rgb\nSIZE 8 8 8 4 4\nTYPE F F F F F\n"));
+  EXPECT_THAT(*ReadFileBytes(PathOf("b.xyz")), StartsWith("x y z distance_d r g b\n"));
+  EXPECT_THAT(*ReadFileBytes(PathOf("c.csv")), StartsWith("x,y,z,distance_d,r,g,b\n"));
+  const std::string npy = PathOf("e.npy");
+  ASSERT_TRUE(WriteCloudWithAttributes(cloud, attributes, npy).ok());
+  EXPECT_THAT(*ReadFileBytes(npy), HasSubstr("'shape': (4, 7)"));
+  const absl::StatusOr<CloudFile> read =
+      ReadCloudFile(npy, ReadOptions{{"x", "y", "z", "distance_d", "r", "g", "b"}});
+  ASSERT_TRUE(read.ok()) << read.status();
+  ExpectBitExact(read->cloud, cloud);
 }
 
 TEST_F(FileTest, MissingFileIsNotFound) {
@@ -830,11 +1115,11 @@ TEST_F(FileTest, UnreadablePathIsUnavailable) {
 
 TEST_F(FileTest, ParseErrorsArePrefixedWithThePath) {
   const std::string path = PathOf("bad.pcd");
-  std::ofstream(path) << "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\n"
-                         "DATA binary_compressed\n";
+  std::ofstream(path) << "VERSION 2\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\n"
+                         "DATA binary\n";
   const absl::StatusOr<PointCloud> result = ReadPointCloud(path);
-  ExpectError(result, absl::StatusCode::kUnimplemented, {"line 6"});
-  EXPECT_THAT(std::string(result.status().message()), StartsWith(path + ": PCD line 6: "));
+  ExpectError(result, absl::StatusCode::kUnimplemented, {"line 1"});
+  EXPECT_THAT(std::string(result.status().message()), StartsWith(path + ": PCD line 1: "));
 }
 
 TEST_F(FileTest, WriteRejectsInvalidCloudsAndMissingDirectories) {
@@ -927,6 +1212,12 @@ TEST(Mutation, BinaryPcd) {
 }
 
 TEST(Mutation, Xyz) { RunMutations(SerializeXyz(MakeCloud(50, true)), ParseXyz, 5); }
+
+TEST(Mutation, CompressedPcd) {
+  PointCloud cloud = MakeCloud(50, true);
+  cloud.colors.assign(cloud.size(), Rgb{1, 2, 3});
+  RunMutations(CompressedPcd(cloud), ParsePcd, 6);
+}
 
 }  // namespace
 }  // namespace mlsreg

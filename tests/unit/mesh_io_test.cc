@@ -136,11 +136,12 @@ TEST(NpyTest, ReadsFloat32WithNormalsAndVersion2Header) {
   const std::uint32_t length = static_cast<std::uint32_t>(dict.size());
   npy.append(reinterpret_cast<const char*>(&length), 4);
   npy += dict;
-  const float values[6] = {1, 2, 3, 0, 0, 2};
+  const float values[6] = {1, 2, 3, 0, 0, 1};
   npy.append(reinterpret_cast<const char*>(values), sizeof(values));
   const auto cloud = ParseNpy(npy);
   ASSERT_TRUE(cloud.ok()) << cloud.status();
   EXPECT_EQ(cloud->points[0], Vec3(1, 2, 3));
+  ASSERT_TRUE(cloud->has_normals());
   EXPECT_EQ(cloud->normals[0], Vec3(0, 0, 1));
 }
 
@@ -153,10 +154,32 @@ TEST(NpyTest, RefusesWrongShapeTypeAndLength) {
     npy += '\0';
     return npy + dict + std::string(data_bytes, '\0');
   };
-  EXPECT_THAT(ParseNpy(make("<f8", "(2, 4)", 64)).status().message(), HasSubstr("(N, 3)"));
+  EXPECT_THAT(ParseNpy(make("<f8", "(2, 2)", 32)).status().message(), HasSubstr("3 <= k"));
+  EXPECT_THAT(ParseNpy(make("<f8", "(2, 3, 1)", 48)).status().message(), HasSubstr("(N, k)"));
   EXPECT_EQ(ParseNpy(make("<i4", "(1, 3)", 12)).status().code(), absl::StatusCode::kUnimplemented);
   EXPECT_THAT(ParseNpy(make("<f8", "(2, 3)", 40)).status().message(), HasSubstr("40 bytes follow"));
   EXPECT_EQ(ParseNpy("not numpy").status().code(), absl::StatusCode::kInvalidArgument);
+}
+
+// An NPY array's columns are read as a text file's without a header: (N, 6) holds normals or
+// colours as the values show, further columns are ignored and said, and named columns win.
+TEST(NpyTest, ColumnsBeyondXyzAreNormalsColoursOrIgnored) {
+  PointCloud cloud;
+  cloud.points = {Vec3(1, 2, 3), Vec3(4, 5, 6)};
+  cloud.normals = {Vec3(0, 0, 2), Vec3(0, 1, 1)};  // not unit: written as they are
+  const absl::StatusOr<CloudFile> colours = ParseCloudFile(CloudFormat::kNpy, SerializeNpy(cloud));
+  ASSERT_TRUE(colours.ok()) << colours.status();
+  EXPECT_EQ(colours->cloud.colors, (std::vector<Rgb>{{0, 0, 2}, {0, 1, 1}}));
+  EXPECT_THAT(colours->notes[0], HasSubstr("read as colours r g b"));
+  const absl::StatusOr<CloudFile> named = ParseCloudFile(
+      CloudFormat::kNpy, SerializeNpy(cloud), ReadOptions{{"x", "y", "z", "nx", "ny", "nz"}});
+  ASSERT_TRUE(named.ok()) << named.status();
+  EXPECT_TRUE(named->notes.empty());
+  EXPECT_EQ(named->cloud.normals[0], Vec3(0, 0, 1));
+  EXPECT_EQ(ParseCloudFile(CloudFormat::kNpy, SerializeNpy(cloud), ReadOptions{{"x", "y", "z"}})
+                .status()
+                .message(),
+            "NPY: the columns given name 3 columns but the array has 6");
 }
 
 TEST(NpyTest, ThreeDMatchDemoFragment) {

@@ -1,7 +1,13 @@
-// Target::WithMovedPoints, the smoothed target of ST-SICP.
+// Target::WithMovedPoints, the smoothed target of ST-SICP; the memory a cached target holds, as
+// docs/operations.md plans capacity with it.
 #include "mlsreg/geometry/target.h"
 
+#include <cmath>
+#include <regex>
+#include <string>
+
 #include "gtest/gtest.h"
+#include "mlsreg/io/io.h"
 #include "support/synthetic.h"
 
 namespace mlsreg {
@@ -27,6 +33,33 @@ TEST(TargetTest, WithMovedPointsRebuildsGeometryButKeepsSurfaceVariation) {
             0.1 * (*target)->surface().curvature[flat.size() / 2]);
   EXPECT_EQ((*target)->WithMovedPoints({Vec3::Zero()}).status().code(),
             absl::StatusCode::kInvalidArgument);
+}
+
+// docs/operations.md sizes the cache with the bytes per point a cached target holds. This is
+// the measurement: the bundled 40k-point bun045 scan built with the options a server caches
+// targets with (kd-tree, normals, curvature, MLS patches, FPFH features). The line and every
+// use of the number in its formulas must state it (to the byte per point).
+TEST(TargetTest, DocsStateTheBytesPerPointOfACachedTarget) {
+  auto cloud = ReadPointCloud(MLSREG_SOURCE_DIR "/data/bunny/bun045.ply");
+  ASSERT_TRUE(cloud.ok()) << cloud.status();
+  const std::size_t points = cloud->size();
+  auto target = Target::Build(*std::move(cloud));
+  ASSERT_TRUE(target.ok()) << target.status();
+  const double per_point = static_cast<double>((*target)->MemoryBytes()) / points;
+  auto docs = ReadFileBytes(MLSREG_SOURCE_DIR "/docs/operations.md");
+  ASSERT_TRUE(docs.ok()) << docs.status();
+  std::smatch stated;
+  ASSERT_TRUE(std::regex_search(*docs, stated,
+                                std::regex(R"(Memory per cached target: (\d+) bytes per point)")));
+  const int documented = std::stoi(stated[1]);
+  EXPECT_LE(std::abs(documented - per_point), 1.0)
+      << "docs/operations.md says " << documented << " bytes per point; a cached " << points
+      << "-point target holds " << per_point << ": update its capacity planning";
+  const std::string text = *docs;
+  const std::regex formula(R"((\d+) B \* P)");
+  for (std::sregex_iterator it(text.begin(), text.end(), formula), end; it != end; ++it) {
+    EXPECT_EQ(std::stoi((*it)[1]), documented) << "a formula uses " << (*it)[0];
+  }
 }
 
 }  // namespace

@@ -30,6 +30,10 @@ absl::Status ValidatePointCloud(const PointCloud& cloud, std::size_t min_points)
       }
     }
   }
+  if (cloud.has_colors() && cloud.colors.size() != cloud.points.size()) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "point cloud has ", cloud.points.size(), " points but ", cloud.colors.size(), " colours"));
+  }
   if (cloud.viewpoint && !cloud.viewpoint->allFinite()) {
     return absl::InvalidArgumentError("viewpoint has a non-finite coordinate");
   }

@@ -52,6 +52,7 @@ absl::StatusOr<std::shared_ptr<Target>> Target::BuildMutable(PointCloud cloud,
   const auto start = std::chrono::steady_clock::now();
   std::shared_ptr<Target> target(new Target());
   target->cloud_ = std::move(cloud);
+  target->cloud_.colors = {};  // never used by registration: not held
   target->options_ = options;
   target->tree_ = std::make_unique<KdTree>(target->cloud_.points);
   if (should_stop && should_stop()) return cancelled();

@@ -1,5 +1,6 @@
 // Reading and writing point-cloud files: the format is chosen by the file's extension, the bytes
-// are read or written whole, and io_ply.cc / io_pcd.cc / io_xyz.cc do the parsing and formatting.
+// are read or written whole, and io_ply.cc / io_pcd.cc / io_xyz.cc / io_npy.cc do the parsing
+// and formatting.
 
 #include "mlsreg/io/io.h"
 
@@ -23,23 +24,6 @@ namespace mlsreg {
 namespace {
 
 using io_internal::LowerCaseExtension;
-
-enum class FileFormat { kPly, kPcd, kXyz, kNpy };
-
-absl::StatusOr<FileFormat> FormatOfPath(const std::string& path) {
-  const std::string extension = LowerCaseExtension(path);
-  if (extension == ".ply") return FileFormat::kPly;
-  if (extension == ".pcd") return FileFormat::kPcd;
-  if (extension == ".xyz" || extension == ".txt" || extension == ".csv") return FileFormat::kXyz;
-  if (extension == ".npy") return FileFormat::kNpy;
-  constexpr const char* kExpected = "expected .ply, .pcd, .xyz, .txt, .csv or .npy";
-  if (extension.empty()) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("'", path, "' has no file extension; ", kExpected));
-  }
-  return absl::InvalidArgumentError(absl::StrCat("unknown point-cloud file extension '", extension,
-                                                 "' in '", path, "'; ", kExpected));
-}
 
 // NotFound when the file or a directory on its path does not exist, Unavailable otherwise.
 absl::Status FileError(int error, const char* action, const std::string& path) {
@@ -69,6 +53,21 @@ std::string LowerCaseExtension(const std::string& path) {
 
 }  // namespace io_internal
 
+absl::StatusOr<CloudFormat> CloudFormatOfPath(const std::string& path) {
+  const std::string extension = LowerCaseExtension(path);
+  if (extension == ".ply") return CloudFormat::kPly;
+  if (extension == ".pcd") return CloudFormat::kPcd;
+  if (extension == ".xyz" || extension == ".txt" || extension == ".csv") return CloudFormat::kXyz;
+  if (extension == ".npy") return CloudFormat::kNpy;
+  constexpr const char* kExpected = "expected .ply, .pcd, .xyz, .txt, .csv or .npy";
+  if (extension.empty()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("'", path, "' has no file extension; ", kExpected));
+  }
+  return absl::InvalidArgumentError(absl::StrCat("unknown point-cloud file extension '", extension,
+                                                 "' in '", path, "'; ", kExpected));
+}
+
 absl::StatusOr<std::string> ReadFileBytes(const std::string& path) {
   errno = 0;
   FilePtr file(std::fopen(path.c_str(), "rb"));
@@ -94,68 +93,84 @@ absl::Status WriteFileBytes(const std::string& path, const std::string& bytes) {
   return absl::OkStatus();
 }
 
-absl::StatusOr<PointCloud> Parse(FileFormat format, std::string_view bytes) {
+// `scalars` null: the plain cloud (WritePointCloud), which an NPY file holds without colours.
+std::string Serialize(const PointCloud& cloud, CloudFormat format, const WriteOptions& options,
+                      const io_internal::ScalarFields* scalars, const std::string& path) {
+  const io_internal::ScalarFields none;
+  const io_internal::ScalarFields& fields = scalars != nullptr ? *scalars : none;
   switch (format) {
-    case FileFormat::kPly:
-      return ParsePly(bytes);
-    case FileFormat::kPcd:
-      return ParsePcd(bytes);
-    case FileFormat::kXyz:
-      return ParseXyz(bytes);
-    case FileFormat::kNpy:
-      return ParseNpy(bytes);
-  }
-  return absl::InternalError("unknown file format");
-}
-
-std::string Serialize(const PointCloud& cloud, FileFormat format, const WriteOptions& options) {
-  switch (format) {
-    case FileFormat::kPly:
-      return SerializePly(cloud, options.ply);
-    case FileFormat::kPcd:
-      return SerializePcd(cloud, options.pcd);
-    case FileFormat::kXyz:
-      return SerializeXyz(cloud);
-    case FileFormat::kNpy:
-      return SerializeNpy(cloud);
+    case CloudFormat::kPly:
+      return io_internal::PlyBytes(cloud, options.ply, fields);
+    case CloudFormat::kPcd:
+      return io_internal::PcdBytes(cloud, options.pcd, fields);
+    case CloudFormat::kXyz:
+      return io_internal::XyzText(cloud, fields, LowerCaseExtension(path) == ".csv" ? ',' : ' ');
+    case CloudFormat::kNpy:
+      return io_internal::NpyBytes(cloud, fields, scalars != nullptr);
   }
   return "";
 }
 
 }  // namespace
 
-absl::StatusOr<PointCloud> ReadPointCloud(const std::string& path) {
-  const absl::StatusOr<FileFormat> format = FormatOfPath(path);
+absl::StatusOr<CloudFile> ParseCloudFile(CloudFormat format, std::string_view bytes,
+                                         const ReadOptions& options) {
+  if (!options.columns.empty() && (format == CloudFormat::kPly || format == CloudFormat::kPcd)) {
+    return absl::InvalidArgumentError(
+        "columns are named for a PLY or PCD file, whose header names its fields; they apply to "
+        "text (.xyz, .txt, .csv) and .npy files");
+  }
+  switch (format) {
+    case CloudFormat::kPly:
+      return io_internal::ParsePlyFile(bytes);
+    case CloudFormat::kPcd:
+      return io_internal::ParsePcdFile(bytes);
+    case CloudFormat::kXyz:
+      return io_internal::ParseXyzFile(bytes, options);
+    case CloudFormat::kNpy:
+      return io_internal::ParseNpyFile(bytes, options);
+  }
+  return absl::InternalError("unknown file format");
+}
+
+absl::StatusOr<CloudFile> ReadCloudFile(const std::string& path, const ReadOptions& options) {
+  const absl::StatusOr<CloudFormat> format = CloudFormatOfPath(path);
   if (!format.ok()) return format.status();
   const absl::StatusOr<std::string> bytes = ReadFileBytes(path);
   if (!bytes.ok()) return bytes.status();
-  absl::StatusOr<PointCloud> cloud = Parse(*format, *bytes);
-  if (!cloud.ok()) {
-    return absl::Status(cloud.status().code(), absl::StrCat(path, ": ", cloud.status().message()));
+  absl::StatusOr<CloudFile> file = ParseCloudFile(*format, *bytes, options);
+  if (!file.ok()) {
+    return absl::Status(file.status().code(), absl::StrCat(path, ": ", file.status().message()));
   }
+  for (std::string& note : file->notes) note = absl::StrCat(path, ": ", note);
   // An organised scan's pinhole intrinsics travel in a sidecar file (intrinsics_sidecar.h).
   absl::StatusOr<PinholeIntrinsics> intrinsics = ReadIntrinsicsSidecar(path);
   if (intrinsics.ok()) {
-    cloud->intrinsics = *intrinsics;
+    file->cloud.intrinsics = *intrinsics;
   } else if (intrinsics.status().code() != absl::StatusCode::kNotFound) {
     return intrinsics.status();
   }
-  return cloud;
+  return file;
 }
 
-absl::Status WritePlyWithAttributes(const PointCloud& cloud, const PointAttributes& attributes,
-                                    const std::string& path) {
+absl::StatusOr<PointCloud> ReadPointCloud(const std::string& path) {
+  absl::StatusOr<CloudFile> file = ReadCloudFile(path);
+  if (!file.ok()) return file.status();
+  return std::move(file->cloud);
+}
+
+absl::Status WriteCloudWithAttributes(const PointCloud& cloud, const PointAttributes& attributes,
+                                      const std::string& path) {
   const auto bad = [&](const std::string& why) {
     return absl::InvalidArgumentError(absl::StrCat("cannot write '", path, "': ", why));
   };
+  const absl::StatusOr<CloudFormat> format = CloudFormatOfPath(path);
+  if (!format.ok()) return format.status();
   if (absl::Status valid = ValidatePointCloud(cloud, 1); !valid.ok()) {
     return bad(std::string(valid.message()));
   }
-  if (!attributes.colors.empty() && attributes.colors.size() != cloud.size()) {
-    return bad("one colour per point is needed");
-  }
-  static constexpr std::string_view kTaken[] = {"x",  "y",   "z",     "nx",  "ny",
-                                                "nz", "red", "green", "blue"};
+  static constexpr std::string_view kTaken[] = {"x",     "y",    "z", "nx", "ny", "nz", "red",
+                                                "green", "blue", "r", "g",  "b",  "rgb"};
   for (const auto& [name, values] : attributes.scalars) {
     const bool word = !name.empty() && std::all_of(name.begin(), name.end(), [](char c) {
       return std::isalnum(static_cast<unsigned char>(c)) || c == '_';
@@ -167,44 +182,17 @@ absl::Status WritePlyWithAttributes(const PointCloud& cloud, const PointAttribut
       return bad(absl::StrCat("scalar '", name, "' needs one value per point"));
     }
   }
-  const bool normals = io_internal::WritesNormals(cloud);
-  std::string out = absl::StrCat(
-      "ply\nformat binary_little_endian 1.0\ncomment written by mlsreg\nelement vertex ",
-      cloud.size(), "\nproperty double x\nproperty double y\nproperty double z\n");
-  if (normals) out += "property double nx\nproperty double ny\nproperty double nz\n";
-  for (const auto& [name, values] : attributes.scalars) {
-    absl::StrAppend(&out, "property float ", name, "\n");
-  }
-  if (!attributes.colors.empty()) {
-    out += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
-  }
-  out += "end_header\n";
-  for (std::size_t i = 0; i < cloud.size(); ++i) {
-    for (int k = 0; k < 3; ++k) {
-      io_internal::AppendDoubleBinary(cloud.points[i][k], std::endian::little, &out);
-    }
-    for (int k = 0; normals && k < 3; ++k) {
-      io_internal::AppendDoubleBinary(cloud.normals[i][k], std::endian::little, &out);
-    }
-    for (const auto& [name, values] : attributes.scalars) {
-      const std::uint32_t bits = std::bit_cast<std::uint32_t>(values[i]);
-      for (int b = 0; b < 4; ++b) out += static_cast<char>((bits >> (8 * b)) & 0xff);
-    }
-    if (!attributes.colors.empty()) {
-      for (std::uint8_t c : attributes.colors[i]) out += static_cast<char>(c);
-    }
-  }
-  return WriteFileBytes(path, out);
+  return WriteFileBytes(path, Serialize(cloud, *format, {}, &attributes.scalars, path));
 }
 
 absl::Status WritePointCloud(const PointCloud& cloud, const std::string& path,
                              const WriteOptions& options) {
-  const absl::StatusOr<FileFormat> format = FormatOfPath(path);
+  const absl::StatusOr<CloudFormat> format = CloudFormatOfPath(path);
   if (!format.ok()) return format.status();
   if (absl::Status valid = ValidatePointCloud(cloud, 1); !valid.ok()) {
     return absl::InvalidArgumentError(absl::StrCat("cannot write '", path, "': ", valid.message()));
   }
-  return WriteFileBytes(path, Serialize(cloud, *format, options));
+  return WriteFileBytes(path, Serialize(cloud, *format, options, nullptr, path));
 }
 
 }  // namespace mlsreg

@@ -18,6 +18,7 @@
 #include <string_view>
 #include <system_error>
 #include <utility>
+#include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
@@ -243,9 +244,31 @@ inline void AppendDoubleBinary(double value, std::endian order, std::string* out
 // ---------------------------------------------------------------------------------------------
 // Points.
 
-// The values a reader collects for one point, indexed by Component.
-enum Component : int { kX = 0, kY, kZ, kNormalX, kNormalY, kNormalZ, kNotAComponent = -1 };
-using PointValues = std::array<double, 6>;
+// The values a reader collects for one point, indexed by Component. Colour channels are on the
+// 0-255 scale once read (rounded and clamped when kept).
+enum Component : int {
+  kX = 0,
+  kY,
+  kZ,
+  kNormalX,
+  kNormalY,
+  kNormalZ,
+  kRed,
+  kGreen,
+  kBlue,
+  kNotAComponent = -1
+};
+using PointValues = std::array<double, 9>;
+
+// The colour of collected values (NaN reads as 0).
+inline Rgb ColorOf(const PointValues& values) {
+  Rgb color;
+  for (int k = 0; k < 3; ++k) {
+    const double v = values[kRed + k];
+    color[k] = static_cast<std::uint8_t>(v >= 255.0 ? 255 : v > 0.0 ? std::lround(v) : 0);
+  }
+  return color;
+}
 
 inline constexpr std::array<std::string_view, 3> kAxisNames = {"x", "y", "z"};
 
@@ -294,10 +317,11 @@ inline absl::Status AppendPoint(const PointValues& values, bool with_normal, con
 // Reserves room for the `declared` points of a header, but for no more than `max_possible`, the
 // most the bytes left could hold, so a header that lies cannot make a reader allocate much.
 inline void ReservePoints(std::uint64_t declared, std::uint64_t max_possible, bool with_normals,
-                          PointCloud* cloud) {
+                          PointCloud* cloud, bool with_colors = false) {
   const std::uint64_t count = std::min(declared, max_possible);
   cloud->points.reserve(count);
   if (with_normals) cloud->normals.reserve(count);
+  if (with_colors) cloud->colors.reserve(count);
 }
 
 // The most lines of `values_per_line` text values that `available` bytes can hold: each value
@@ -325,32 +349,116 @@ inline bool WritesNormals(const PointCloud& cloud) {
   return cloud.has_normals() && cloud.normals.size() == cloud.points.size();
 }
 
-// Appends one line "x y z[ nx ny nz]\n" per point, 17 significant digits each.
-inline void AppendPointsAsText(const PointCloud& cloud, std::string* out) {
+// True when a writer should write colours: there is exactly one per point.
+inline bool WritesColors(const PointCloud& cloud) {
+  return cloud.has_colors() && cloud.colors.size() == cloud.points.size();
+}
+
+// Scalar fields written beside the points: (name, one value per point).
+using ScalarFields = std::vector<std::pair<std::string, std::vector<float>>>;
+
+// How a format stores a colour: three channels (PLY uchar red green blue, text r g b), or PCL's
+// rgb, one 32-bit word 0x00RRGGBB stored as a float.
+enum class ColorEncoding { kChannels, kPackedFloat };
+
+inline std::uint32_t PackRgb(const Rgb& c) {
+  return (std::uint32_t{c[0]} << 16) | (std::uint32_t{c[1]} << 8) | std::uint32_t{c[2]};
+}
+inline Rgb UnpackRgb(std::uint32_t packed) {
+  return {static_cast<std::uint8_t>(packed >> 16), static_cast<std::uint8_t>(packed >> 8),
+          static_cast<std::uint8_t>(packed)};
+}
+
+// What one written record holds, in this order: x y z, nx ny nz (when the cloud has a normal per
+// point), the scalars, the colour (when the cloud has a colour per point).
+struct RecordLayout {
+  const ScalarFields* scalars = nullptr;  // may be null
+  ColorEncoding colors = ColorEncoding::kChannels;
+};
+
+// Appends `value` as text with 9 significant digits, which parses back to the same float.
+inline void AppendFloatText(float value, std::string* out) {
+  char buffer[32];
+  const auto result =
+      std::to_chars(buffer, buffer + sizeof(buffer), value, std::chars_format::general, 9);
+  out->append(buffer, result.ptr);
+}
+
+// Appends one line per point, fields separated by `separator`: coordinates and normals with 17
+// significant digits, scalars with 9, colours as integers (or PCL's packed float).
+inline void AppendRecordsAsText(const PointCloud& cloud, const RecordLayout& layout, char separator,
+                                std::string* out) {
   const bool with_normals = WritesNormals(cloud);
+  const bool with_colors = WritesColors(cloud);
   out->reserve(out->size() + cloud.size() * (with_normals ? 150 : 75));
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     for (int k = 0; k < 3; ++k) {
-      if (k > 0) *out += ' ';
+      if (k > 0) *out += separator;
       AppendDoubleText(cloud.points[i][k], out);
     }
     for (int k = 0; with_normals && k < 3; ++k) {
-      *out += ' ';
+      *out += separator;
       AppendDoubleText(cloud.normals[i][k], out);
+    }
+    for (std::size_t f = 0; layout.scalars != nullptr && f < layout.scalars->size(); ++f) {
+      *out += separator;
+      AppendFloatText((*layout.scalars)[f].second[i], out);
+    }
+    if (with_colors && layout.colors == ColorEncoding::kPackedFloat) {
+      *out += separator;
+      AppendDoubleText(std::bit_cast<float>(PackRgb(cloud.colors[i])), out);
+    } else if (with_colors) {
+      for (std::uint8_t c : cloud.colors[i]) {
+        *out += separator;
+        absl::StrAppend(out, static_cast<int>(c));
+      }
     }
     *out += '\n';
   }
 }
 
-// Appends x y z[ nx ny nz] of every point as 8-byte doubles in byte order `order`.
-inline void AppendPointsAsBinary(const PointCloud& cloud, std::endian order, std::string* out) {
+// Appends the records of every point in byte order `order`: coordinates and normals as 8-byte
+// doubles, scalars as 4-byte floats, colours as three bytes (or PCL's packed 4-byte word).
+inline void AppendRecordsAsBinary(const PointCloud& cloud, const RecordLayout& layout,
+                                  std::endian order, std::string* out) {
   const bool with_normals = WritesNormals(cloud);
+  const bool with_colors = WritesColors(cloud);
+  const auto append_word = [&](std::uint32_t bits) {
+    char bytes[4];
+    std::memcpy(bytes, &bits, 4);
+    if (order != std::endian::native) std::reverse(bytes, bytes + 4);
+    out->append(bytes, 4);
+  };
   out->reserve(out->size() + cloud.size() * (with_normals ? 48 : 24));
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     for (int k = 0; k < 3; ++k) AppendDoubleBinary(cloud.points[i][k], order, out);
     for (int k = 0; with_normals && k < 3; ++k) AppendDoubleBinary(cloud.normals[i][k], order, out);
+    for (std::size_t f = 0; layout.scalars != nullptr && f < layout.scalars->size(); ++f) {
+      append_word(std::bit_cast<std::uint32_t>((*layout.scalars)[f].second[i]));
+    }
+    if (with_colors && layout.colors == ColorEncoding::kPackedFloat) {
+      append_word(PackRgb(cloud.colors[i]));
+    } else if (with_colors) {
+      for (std::uint8_t c : cloud.colors[i]) *out += static_cast<char>(c);
+    }
   }
 }
+
+// ---------------------------------------------------------------------------------------------
+// The readers and writers behind the public functions (io_ply.cc, io_pcd.cc, io_xyz.cc,
+// io_npy.cc): whole files with their notes, and files with scalar fields.
+
+absl::StatusOr<CloudFile> ParsePlyFile(std::string_view bytes);
+absl::StatusOr<CloudFile> ParsePcdFile(std::string_view bytes);
+absl::StatusOr<CloudFile> ParseXyzFile(std::string_view bytes, const ReadOptions& options);
+absl::StatusOr<CloudFile> ParseNpyFile(std::string_view bytes, const ReadOptions& options);
+
+std::string PlyBytes(const PointCloud& cloud, PlyEncoding encoding, const ScalarFields& scalars);
+std::string PcdBytes(const PointCloud& cloud, PcdEncoding encoding, const ScalarFields& scalars);
+// A header line naming the columns when there are more than x y z, then the records.
+std::string XyzText(const PointCloud& cloud, const ScalarFields& scalars, char separator);
+// float64 (N, k): x y z [nx ny nz] [scalars] [r g b] when `with_colors`.
+std::string NpyBytes(const PointCloud& cloud, const ScalarFields& scalars, bool with_colors);
 
 // ---------------------------------------------------------------------------------------------
 // Meshes (mesh_io.cc).

@@ -15,6 +15,7 @@
 #include "absl/strings/str_cat.h"
 #include "io_internal.h"
 #include "mlsreg/io/io.h"
+#include "table_columns.h"
 
 namespace mlsreg {
 namespace {
@@ -22,6 +23,7 @@ namespace {
 using io_internal::ToAbsl;
 
 constexpr std::string_view kMagic = "\x93NUMPY";
+constexpr std::uint64_t kMaxColumns = 4096;
 
 absl::Status NpyError(std::string_view what) {
   return absl::InvalidArgumentError(absl::StrCat("NPY header: ", ToAbsl(what)));
@@ -101,10 +103,11 @@ absl::StatusOr<NpyLayout> ParseHeaderDict(std::string_view dict) {
       return NpyError(absl::StrCat("shape has a bad dimension ", io_internal::Quote(token)));
     dims.push_back(*dim);
   }
-  if (dims.size() != 2 || (dims[1] != 3 && dims[1] != 6)) {
+  if (dims.size() != 2 || dims[1] < 3 || dims[1] > kMaxColumns) {
     return absl::InvalidArgumentError(
         absl::StrCat("NPY: the array has shape ", io_internal::Quote(*shape),
-                     "; expected (N, 3) points or (N, 6) points with normals"));
+                     "; expected (N, k) with 3 <= k <= ", kMaxColumns,
+                     ": x y z, then normals, colours or other columns"));
   }
   layout.rows = dims[0];
   layout.columns = dims[1];
@@ -113,7 +116,9 @@ absl::StatusOr<NpyLayout> ParseHeaderDict(std::string_view dict) {
 
 }  // namespace
 
-absl::StatusOr<PointCloud> ParseNpy(std::string_view bytes) {
+namespace io_internal {
+
+absl::StatusOr<CloudFile> ParseNpyFile(std::string_view bytes, const ReadOptions& options) {
   if (bytes.substr(0, kMagic.size()) != kMagic || bytes.size() < 10) {
     return absl::InvalidArgumentError("not a NumPy .npy file: the magic string is missing");
   }
@@ -143,29 +148,36 @@ absl::StatusOr<PointCloud> ParseNpy(std::string_view bytes) {
         "NPY: the header declares ", layout->rows, " x ", layout->columns, " values (",
         io_internal::ByteCount(layout->rows, record), ") but ", available, " bytes follow it"));
   }
-  PointCloud cloud;
-  const bool with_normals = layout->columns == 6;
-  io_internal::ReservePoints(layout->rows, layout->rows, with_normals, &cloud);
-  io_internal::PointValues values{};
+  absl::StatusOr<ColumnLayout> columns =
+      options.columns.empty() ? LayoutFromCount(layout->columns)
+                              : LayoutFromNames(options.columns, "the columns given");
+  if (!columns.ok()) return columns.status();
+  if (columns->roles.size() != layout->columns) {
+    return absl::InvalidArgumentError(absl::StrCat("NPY: the columns given name ",
+                                                   columns->roles.size(),
+                                                   " columns but the array has ", layout->columns));
+  }
+  TableCloud table("NPY", *std::move(columns));
+  table.Reserve(layout->rows);
+  std::vector<double> values(layout->columns);
   for (std::uint64_t i = 0; i < layout->rows; ++i) {
     const std::size_t offset = data_offset + i * record;
     for (std::uint64_t c = 0; c < layout->columns; ++c) {
-      values[c] = io_internal::DecodeScalar(bytes.data() + offset + c * layout->type.size,
-                                            layout->type, layout->order);
+      values[c] =
+          DecodeScalar(bytes.data() + offset + c * layout->type.size, layout->type, layout->order);
     }
-    const io_internal::Location where = {"NPY", io_internal::Location::Unit::kByteOffset, offset,
-                                         "point", i};
-    if (absl::Status s = io_internal::AppendPoint(values, with_normals, where, &cloud); !s.ok()) {
-      return s;
-    }
+    const Location where = {"NPY", Location::Unit::kByteOffset, offset, "point", i};
+    if (absl::Status s = table.AddRow(values.data(), where); !s.ok()) return s;
   }
-  return io_internal::FinishCloud("NPY", std::move(cloud));
+  return std::move(table).Finish();
 }
 
-std::string SerializeNpy(const PointCloud& cloud) {
-  const bool with_normals = io_internal::WritesNormals(cloud);
+std::string NpyBytes(const PointCloud& cloud, const ScalarFields& scalars, bool with_colors) {
+  const bool colors = with_colors && WritesColors(cloud);
+  const std::size_t columns =
+      3 + (WritesNormals(cloud) ? 3 : 0) + scalars.size() + (colors ? 3 : 0);
   std::string dict = absl::StrCat("{'descr': '<f8', 'fortran_order': False, 'shape': (",
-                                  cloud.size(), ", ", with_normals ? 6 : 3, "), }");
+                                  cloud.size(), ", ", columns, "), }");
   // Magic (6) + version (2) + length (2) + dict + '\n', padded with spaces to a multiple of 64.
   const std::size_t unpadded = 10 + dict.size() + 1;
   dict.append((64 - unpadded % 64) % 64, ' ');
@@ -176,8 +188,33 @@ std::string SerializeNpy(const PointCloud& cloud) {
   out += static_cast<char>(dict.size() & 0xff);
   out += static_cast<char>(dict.size() >> 8);
   out += dict;
-  io_internal::AppendPointsAsBinary(cloud, std::endian::little, &out);
+  const bool normals = WritesNormals(cloud);
+  out.reserve(out.size() + cloud.size() * columns * 8);
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    for (int k = 0; k < 3; ++k) AppendDoubleBinary(cloud.points[i][k], std::endian::little, &out);
+    for (int k = 0; normals && k < 3; ++k) {
+      AppendDoubleBinary(cloud.normals[i][k], std::endian::little, &out);
+    }
+    for (const auto& [name, values] : scalars) {
+      AppendDoubleBinary(values[i], std::endian::little, &out);
+    }
+    for (int k = 0; colors && k < 3; ++k) {
+      AppendDoubleBinary(cloud.colors[i][k], std::endian::little, &out);
+    }
+  }
   return out;
+}
+
+}  // namespace io_internal
+
+absl::StatusOr<PointCloud> ParseNpy(std::string_view bytes) {
+  absl::StatusOr<CloudFile> file = io_internal::ParseNpyFile(bytes, {});
+  if (!file.ok()) return file.status();
+  return std::move(file->cloud);
+}
+
+std::string SerializeNpy(const PointCloud& cloud) {
+  return io_internal::NpyBytes(cloud, {}, false);
 }
 
 }  // namespace mlsreg

@@ -2,11 +2,13 @@
 //
 // Reading is two steps: collect the header lines ("KEYWORD values...", up to DATA) and check them
 // into a PcdHeader (fields with their types, the point count, the viewpoint), then read the points
-// in ASCII (one line per point) or binary (fixed-size little-endian records).
+// in ASCII (one line per point), binary (fixed-size little-endian records) or binary_compressed
+// (LZF-compressed fields, lzf.h).
 
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -16,7 +18,9 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "io_internal.h"
+#include "lzf.h"
 #include "mlsreg/io/io.h"
 
 namespace mlsreg {
@@ -98,6 +102,7 @@ struct PcdField {
   ScalarType type{};
   std::uint64_t count = 1;  // values of this field per point
   int component = Component::kNotAComponent;
+  bool packed_color = false;  // rgb or rgba: one 32-bit word 0xAARRGGBB (as F, U or I)
 };
 
 struct PcdHeader {
@@ -105,8 +110,11 @@ struct PcdHeader {
   std::uint64_t values_per_point = 0;  // ASCII tokens per line
   std::uint64_t record_bytes = 0;      // bytes per point in binary
   bool has_normals = false;
+  bool has_colors = false;
+  std::vector<std::string> ignored;  // fields read and skipped (padding "_" not counted)
   std::uint64_t points = 0;
   std::optional<Vec3> viewpoint;
+  bool compressed = false;  // DATA binary_compressed (encoding kBinary)
   PcdEncoding encoding = PcdEncoding::kAscii;
 };
 
@@ -194,7 +202,20 @@ absl::Status BuildFields(const RawPcdHeader& raw, PcdHeader* header) {
       field.count = *count;
     }
     field.component = ComponentOfField(field.name);
-    if (field.component != Component::kNotAComponent) {
+    if (field.name == "rgb" || field.name == "rgba") {
+      if (header->has_colors) {
+        return ErrorAt(AtLine(kPcd, raw.fields->line), "FIELDS has both rgb and rgba");
+      }
+      if (field.count != 1 || field.type.size != 4) {
+        return ErrorAt(AtLine(kPcd, raw.type->line),
+                       absl::StrCat("field '", field.name, "' must have SIZE 4 and COUNT 1"));
+      }
+      field.packed_color = header->has_colors = true;
+      field.component = Component::kRed;
+    } else if (field.component == Component::kNotAComponent && field.name != "_") {
+      header->ignored.push_back(field.name);
+    }
+    if (field.component != Component::kNotAComponent && !field.packed_color) {
       if (found[field.component]) {
         return ErrorAt(AtLine(kPcd, raw.fields->line),
                        absl::StrCat("field '", field.name, "' appears twice"));
@@ -297,19 +318,19 @@ absl::Status BuildViewpoint(const RawPcdHeader& raw, PcdHeader* header) {
 absl::Status BuildEncoding(const RawPcdHeader& raw, PcdHeader* header) {
   const Location where = AtLine(kPcd, raw.data->line);
   const std::string_view data = raw.data->values[0];
-  if (raw.data->values.size() != 1) return ErrorAt(where, "expected \"DATA ascii|binary\"");
+  if (raw.data->values.size() != 1) {
+    return ErrorAt(where, "expected \"DATA ascii|binary|binary_compressed\"");
+  }
   if (data == "ascii") {
     header->encoding = PcdEncoding::kAscii;
   } else if (data == "binary") {
     header->encoding = PcdEncoding::kBinary;
   } else if (data == "binary_compressed") {
-    return absl::UnimplementedError(
-        absl::StrCat(ToString(where),
-                     ": DATA binary_compressed is not supported; convert the file "
-                     "to binary or ascii (e.g. with PCL's pcl_convert_pcd_ascii_binary)"));
+    header->encoding = PcdEncoding::kBinary;
+    header->compressed = true;
   } else {
-    return ErrorAt(
-        where, absl::StrCat("unknown DATA encoding ", Quote(data), " (expected ascii or binary)"));
+    return ErrorAt(where, absl::StrCat("unknown DATA encoding ", Quote(data),
+                                       " (expected ascii, binary or binary_compressed)"));
   }
   return absl::OkStatus();
 }
@@ -330,6 +351,24 @@ absl::StatusOr<PcdHeader> ParsePcdHeader(LineCursor& lines) {
 // ---------------------------------------------------------------------------------------------
 // ASCII data: one point per line.
 
+// Stores the channels of PCL's packed colour word in `values`.
+void SetPackedColor(std::uint32_t bits, PointValues* values) {
+  const Rgb color = io_internal::UnpackRgb(bits);
+  for (int k = 0; k < 3; ++k) (*values)[Component::kRed + k] = color[k];
+}
+
+// The packed colour word a text value of `field` stands for: a float's bits (TYPE F, as PCL
+// writes rgb), or an integer's.
+std::optional<std::uint32_t> PackedColorBits(const PcdField& field, double value) {
+  if (field.type.kind == ScalarType::Kind::kFloat) {
+    return std::bit_cast<std::uint32_t>(static_cast<float>(value));
+  }
+  const double min = field.type.kind == ScalarType::Kind::kSigned ? -2147483648.0 : 0.0;
+  const double max = field.type.kind == ScalarType::Kind::kSigned ? 2147483647.0 : 4294967295.0;
+  if (!(value >= min && value <= max) || value != std::floor(value)) return std::nullopt;
+  return static_cast<std::uint32_t>(static_cast<std::int64_t>(value));
+}
+
 absl::Status ReadAsciiPoint(const PcdHeader& header, std::string_view line, const Location& where,
                             PointValues* values) {
   std::string_view token;
@@ -343,7 +382,16 @@ absl::Status ReadAsciiPoint(const PcdHeader& header, std::string_view line, cons
         return ErrorAt(
             where, absl::StrCat("field '", field.name, "': ", Quote(token), " is not a number"));
       }
-      if (field.component != Component::kNotAComponent) (*values)[field.component] = *value;
+      if (field.packed_color) {
+        const std::optional<std::uint32_t> bits = PackedColorBits(field, *value);
+        if (!bits) {
+          return ErrorAt(where, absl::StrCat("field '", field.name, "': ", Quote(token),
+                                             " is not a packed colour"));
+        }
+        SetPackedColor(*bits, values);
+      } else if (field.component != Component::kNotAComponent) {
+        (*values)[field.component] = *value;
+      }
     }
   }
   if (NextToken(&line, &token)) {
@@ -355,7 +403,8 @@ absl::Status ReadAsciiPoint(const PcdHeader& header, std::string_view line, cons
 absl::Status ReadAsciiPoints(const PcdHeader& header, LineCursor& lines, PointCloud* cloud) {
   const std::uint64_t max_lines =
       io_internal::MaxTextLines(lines.rest().size(), header.values_per_point);
-  io_internal::ReservePoints(header.points, max_lines, header.has_normals, cloud);
+  io_internal::ReservePoints(header.points, max_lines, header.has_normals, cloud,
+                             header.has_colors);
   std::string_view line;
   PointValues values{};
   for (std::uint64_t i = 0; i < header.points; ++i) {
@@ -367,6 +416,7 @@ absl::Status ReadAsciiPoints(const PcdHeader& header, LineCursor& lines, PointCl
     const Location where = {kPcd, Location::Unit::kLine, lines.line_number(), "point", i};
     if (absl::Status s = ReadAsciiPoint(header, line, where, &values); !s.ok()) return s;
     if (absl::Status s = AppendPoint(values, header.has_normals, where, cloud); !s.ok()) return s;
+    if (header.has_colors) cloud->colors.push_back(io_internal::ColorOf(values));
   }
   while (lines.Next(&line)) {
     if (!io_internal::IsBlank(line)) {
@@ -385,6 +435,7 @@ struct ComponentSlot {
   int component;
   std::uint64_t offset;
   ScalarType type;
+  bool packed_color;
 };
 
 std::vector<ComponentSlot> ComponentSlots(const PcdHeader& header) {
@@ -392,11 +443,51 @@ std::vector<ComponentSlot> ComponentSlots(const PcdHeader& header) {
   std::uint64_t offset = 0;
   for (const PcdField& field : header.fields) {
     if (field.component != Component::kNotAComponent) {
-      slots.push_back({field.component, offset, field.type});
+      slots.push_back({field.component, offset, field.type, field.packed_color});
     }
     offset += field.count * field.type.size;
   }
   return slots;
+}
+
+std::uint32_t LittleEndianWord(const char* data) {
+  std::uint32_t word = 0;
+  for (int k = 0; k < 4; ++k) word |= std::uint32_t{static_cast<unsigned char>(data[k])} << (8 * k);
+  return word;
+}
+
+// Appends the header.points records at `records` (one every header.record_bytes) to `cloud`;
+// errors name the file offset first_offset + i * offset_step of point i.
+absl::Status DecodeRecords(const PcdHeader& header, const char* records, std::uint64_t first_offset,
+                           std::uint64_t offset_step, PointCloud* cloud) {
+  io_internal::ReservePoints(header.points, header.points, header.has_normals, cloud,
+                             header.has_colors);
+  const std::vector<ComponentSlot> slots = ComponentSlots(header);
+  PointValues values{};
+  for (std::uint64_t i = 0; i < header.points; ++i) {
+    const char* record = records + i * header.record_bytes;
+    for (const ComponentSlot& slot : slots) {
+      if (slot.packed_color) {
+        SetPackedColor(LittleEndianWord(record + slot.offset), &values);
+      } else {
+        values[slot.component] =
+            io_internal::DecodeScalar(record + slot.offset, slot.type, std::endian::little);
+      }
+    }
+    const Location where = {kPcd, Location::Unit::kByteOffset, first_offset + i * offset_step,
+                            "point", i};
+    if (absl::Status s = AppendPoint(values, header.has_normals, where, cloud); !s.ok()) return s;
+    if (header.has_colors) cloud->colors.push_back(io_internal::ColorOf(values));
+  }
+  return absl::OkStatus();
+}
+
+// Only blank space may follow the data.
+absl::Status CheckNothingAfter(std::string_view bytes, std::uint64_t end) {
+  if (io_internal::IsBlank(bytes.substr(end))) return absl::OkStatus();
+  return ErrorAt(AtOffset(kPcd, end),
+                 absl::StrCat(bytes.size() - end,
+                              " unexpected bytes after the last point the header declares"));
 }
 
 absl::Status ReadBinaryPoints(const PcdHeader& header, std::string_view bytes,
@@ -408,36 +499,88 @@ absl::Status ReadBinaryPoints(const PcdHeader& header, std::string_view bytes,
                                 ByteCount(header.points, header.record_bytes), ") but only ",
                                 available, " bytes follow the header"));
   }
-  io_internal::ReservePoints(header.points, header.points, header.has_normals, cloud);
-  const std::vector<ComponentSlot> slots = ComponentSlots(header);
-  PointValues values{};
-  for (std::uint64_t i = 0; i < header.points; ++i) {
-    const std::uint64_t record = data_offset + i * header.record_bytes;
-    for (const ComponentSlot& slot : slots) {
-      values[slot.component] = io_internal::DecodeScalar(bytes.data() + record + slot.offset,
-                                                         slot.type, std::endian::little);
+  if (absl::Status s = DecodeRecords(header, bytes.data() + data_offset, data_offset,
+                                     header.record_bytes, cloud);
+      !s.ok()) {
+    return s;
+  }
+  return CheckNothingAfter(bytes, data_offset + header.points * header.record_bytes);
+}
+
+// The most bytes LZF can produce from one input byte: a 3-byte back reference of 264 bytes.
+constexpr std::uint64_t kLzfMaxExpansion = 88;
+
+// DATA binary_compressed (PCL): the compressed and uncompressed sizes (little-endian 32-bit
+// words), then the LZF-compressed data, which holds each field of every point in turn (all
+// points' x, then all points' y, ...).
+absl::Status ReadCompressedPoints(const PcdHeader& header, std::string_view bytes,
+                                  std::size_t data_offset, PointCloud* cloud) {
+  const Location at = AtOffset(kPcd, data_offset);
+  const std::uint64_t available = bytes.size() - data_offset;
+  if (available < 8) {
+    return ErrorAt(at,
+                   "binary_compressed data must start with its compressed and uncompressed "
+                   "sizes (8 bytes)");
+  }
+  const std::uint64_t compressed = LittleEndianWord(bytes.data() + data_offset);
+  const std::uint64_t uncompressed = LittleEndianWord(bytes.data() + data_offset + 4);
+  if (compressed > available - 8) {
+    return ErrorAt(at, absl::StrCat("the compressed data are declared as ", compressed,
+                                    " bytes but only ", available - 8, " follow"));
+  }
+  if (header.points > UINT64_MAX / header.record_bytes ||
+      header.points * header.record_bytes != uncompressed) {
+    return ErrorAt(at, absl::StrCat("the uncompressed size ", uncompressed, " is not POINTS x ",
+                                    header.record_bytes, " bytes per point (",
+                                    ByteCount(header.points, header.record_bytes), ")"));
+  }
+  if (uncompressed / kLzfMaxExpansion > compressed) {
+    return ErrorAt(at, absl::StrCat("LZF cannot expand ", compressed, " bytes to ", uncompressed));
+  }
+  absl::StatusOr<std::string> fields =
+      io_internal::LzfDecompress(bytes.substr(data_offset + 8, compressed), uncompressed);
+  if (!fields.ok()) return ErrorAt(at, std::string(fields.status().message()));
+  // Field by field (structure of arrays) into records, as binary data lays them out.
+  std::string records(uncompressed, '\0');
+  std::uint64_t field_start = 0, record_offset = 0;
+  for (const PcdField& field : header.fields) {
+    const std::uint64_t field_bytes = field.count * field.type.size;
+    for (std::uint64_t i = 0; i < header.points; ++i) {
+      std::memcpy(records.data() + i * header.record_bytes + record_offset,
+                  fields->data() + field_start + i * field_bytes, field_bytes);
     }
-    const Location where = {kPcd, Location::Unit::kByteOffset, record, "point", i};
-    if (absl::Status s = AppendPoint(values, header.has_normals, where, cloud); !s.ok()) return s;
+    field_start += header.points * field_bytes;
+    record_offset += field_bytes;
   }
-  const std::uint64_t end = data_offset + header.points * header.record_bytes;
-  if (!io_internal::IsBlank(bytes.substr(end))) {
-    return ErrorAt(AtOffset(kPcd, end),
-                   absl::StrCat(bytes.size() - end,
-                                " unexpected bytes after the last point the header declares"));
+  if (absl::Status s = DecodeRecords(header, records.data(), data_offset, 0, cloud); !s.ok()) {
+    return s;
   }
-  return absl::OkStatus();
+  return CheckNothingAfter(bytes, data_offset + 8 + compressed);
 }
 
 // ---------------------------------------------------------------------------------------------
 // Writer.
 
-std::string PcdHeaderText(const PointCloud& cloud, PcdEncoding encoding) {
-  std::string header = "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\n";
-  header += io_internal::WritesNormals(cloud)
-                ? "FIELDS x y z normal_x normal_y normal_z\nSIZE 8 8 8 8 8 8\n"
-                  "TYPE F F F F F F\nCOUNT 1 1 1 1 1 1\n"
-                : "FIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nCOUNT 1 1 1\n";
+std::string PcdHeaderText(const PointCloud& cloud, PcdEncoding encoding,
+                          const io_internal::ScalarFields& scalars) {
+  std::vector<std::string> names = {"x", "y", "z"}, sizes(3, "8");
+  if (io_internal::WritesNormals(cloud)) {
+    names.insert(names.end(), {"normal_x", "normal_y", "normal_z"});
+    sizes.insert(sizes.end(), 3, "8");
+  }
+  for (const auto& [name, values] : scalars) {
+    names.push_back(name);
+    sizes.push_back("4");
+  }
+  if (io_internal::WritesColors(cloud)) {
+    names.push_back("rgb");
+    sizes.push_back("4");
+  }
+  std::string header =
+      absl::StrCat("# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS ",
+                   absl::StrJoin(names, " "), "\nSIZE ", absl::StrJoin(sizes, " "), "\nTYPE ",
+                   absl::StrJoin(std::vector<std::string>(names.size(), "F"), " "), "\nCOUNT ",
+                   absl::StrJoin(std::vector<std::string>(names.size(), "1"), " "), "\n");
   absl::StrAppend(&header, "WIDTH ", cloud.size(), "\nHEIGHT 1\nVIEWPOINT");
   const Vec3 origin = cloud.viewpoint.value_or(Vec3::Zero());
   for (int k = 0; k < 3; ++k) {
@@ -451,27 +594,50 @@ std::string PcdHeaderText(const PointCloud& cloud, PcdEncoding encoding) {
 
 }  // namespace
 
-absl::StatusOr<PointCloud> ParsePcd(std::string_view bytes) {
+namespace io_internal {
+
+absl::StatusOr<CloudFile> ParsePcdFile(std::string_view bytes) {
   LineCursor lines(bytes);
   absl::StatusOr<PcdHeader> header = ParsePcdHeader(lines);
   if (!header.ok()) return header.status();
   PointCloud cloud;
   cloud.viewpoint = header->viewpoint;
-  const absl::Status status = header->encoding == PcdEncoding::kAscii
-                                  ? ReadAsciiPoints(*header, lines, &cloud)
-                                  : ReadBinaryPoints(*header, bytes, lines.offset(), &cloud);
+  const absl::Status status =
+      header->encoding == PcdEncoding::kAscii ? ReadAsciiPoints(*header, lines, &cloud)
+      : header->compressed ? ReadCompressedPoints(*header, bytes, lines.offset(), &cloud)
+                           : ReadBinaryPoints(*header, bytes, lines.offset(), &cloud);
   if (!status.ok()) return status;
-  return io_internal::FinishCloud(kPcd, std::move(cloud));
+  absl::StatusOr<PointCloud> finished = FinishCloud(kPcd, std::move(cloud));
+  if (!finished.ok()) return finished.status();
+  CloudFile file{*std::move(finished), {}};
+  if (!header->ignored.empty()) {
+    file.notes.push_back(
+        absl::StrCat("PCD: fields read and ignored: ", absl::StrJoin(header->ignored, ", ")));
+  }
+  return file;
+}
+
+std::string PcdBytes(const PointCloud& cloud, PcdEncoding encoding, const ScalarFields& scalars) {
+  std::string out = PcdHeaderText(cloud, encoding, scalars);
+  const RecordLayout layout{.scalars = &scalars, .colors = ColorEncoding::kPackedFloat};
+  if (encoding == PcdEncoding::kAscii) {
+    AppendRecordsAsText(cloud, layout, ' ', &out);
+  } else {
+    AppendRecordsAsBinary(cloud, layout, std::endian::little, &out);
+  }
+  return out;
+}
+
+}  // namespace io_internal
+
+absl::StatusOr<PointCloud> ParsePcd(std::string_view bytes) {
+  absl::StatusOr<CloudFile> file = io_internal::ParsePcdFile(bytes);
+  if (!file.ok()) return file.status();
+  return std::move(file->cloud);
 }
 
 std::string SerializePcd(const PointCloud& cloud, PcdEncoding encoding) {
-  std::string out = PcdHeaderText(cloud, encoding);
-  if (encoding == PcdEncoding::kAscii) {
-    io_internal::AppendPointsAsText(cloud, &out);
-  } else {
-    io_internal::AppendPointsAsBinary(cloud, std::endian::little, &out);
-  }
-  return out;
+  return io_internal::PcdBytes(cloud, encoding, {});
 }
 
 }  // namespace mlsreg

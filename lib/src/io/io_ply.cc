@@ -6,6 +6,7 @@
 // skipped.
 
 #include <bit>
+#include <cmath>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -16,6 +17,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "io_internal.h"
 #include "mlsreg/core/triangle_mesh.h"
 #include "mlsreg/io/io.h"
@@ -50,6 +52,7 @@ struct PlyProperty {
   ScalarType type{};                          // of the value, or of each item of a list
   std::optional<ScalarType> list_count_type;  // set for "property list <count> <item> <name>"
   int component = Component::kNotAComponent;  // which point value it holds (vertex element only)
+  double scale = 1.0;  // a colour channel: from the type's range (or [0, 1] for floats) to 0-255
   bool face_indices = false;  // the face element's vertex_indices list, kept when reading a mesh
 };
 
@@ -80,7 +83,17 @@ struct PlyHeader {
   PlyEncoding encoding = PlyEncoding::kAscii;
   std::vector<PlyElement> elements;  // in file order
   bool has_normals = false;          // the vertex element has nx, ny, nz
+  bool has_colors = false;           // the vertex element has red, green, blue
+  std::vector<std::string> ignored;  // the vertex element's other properties
 };
+
+// The factor from a colour property's values to 0-255: floats are in [0, 1], integers span
+// their type's range.
+double ColorScale(ScalarType type) {
+  if (type.kind == ScalarType::Kind::kFloat) return 255.0;
+  const int bits = 8 * type.size - (type.kind == ScalarType::Kind::kSigned ? 1 : 0);
+  return 255.0 / (std::ldexp(1.0, bits) - 1.0);
+}
 
 std::optional<ScalarType> ParsePlyType(std::string_view name) {
   using Kind = ScalarType::Kind;
@@ -201,17 +214,19 @@ absl::Status ParsePropertyLine(std::string_view rest, const Location& where, Ply
   return absl::OkStatus();
 }
 
-// Marks which vertex properties hold x, y, z (required) and nx, ny, nz (all three or none).
+// Marks which vertex properties hold x, y, z (required), nx, ny, nz (all three or none) and
+// red, green, blue (all three, or they are ignored), and lists the others.
 absl::Status AssignVertexComponents(PlyHeader* header) {
   PlyElement* vertex = nullptr;
   for (PlyElement& element : header->elements) {
     if (element.name == kVertex) vertex = &element;
   }
   if (vertex == nullptr) return absl::InvalidArgumentError("PLY header has no \"vertex\" element");
-  static constexpr std::string_view kNames[] = {"x", "y", "z", "nx", "ny", "nz"};
-  bool found[6] = {};
+  static constexpr std::string_view kNames[] = {"x",  "y",   "z",     "nx",  "ny",
+                                                "nz", "red", "green", "blue"};
+  bool found[9] = {};
   for (PlyProperty& property : vertex->properties) {
-    for (int component = 0; component < 6; ++component) {
+    for (int component = 0; component < 9; ++component) {
       if (property.name != kNames[component]) continue;
       if (property.list_count_type) {
         return ErrorAt(AtLine(kPly, vertex->header_line),
@@ -219,6 +234,7 @@ absl::Status AssignVertexComponents(PlyHeader* header) {
                                     "' is a list; it must be a single number"));
       }
       property.component = component;
+      if (component >= Component::kRed) property.scale = ColorScale(property.type);
       found[component] = true;
     }
   }
@@ -233,6 +249,14 @@ absl::Status AssignVertexComponents(PlyHeader* header) {
   if (!header->has_normals && (found[3] || found[4] || found[5])) {
     return ErrorAt(AtLine(kPly, vertex->header_line),
                    "the vertex element has only some of nx, ny, nz (all three or none)");
+  }
+  header->has_colors = found[6] && found[7] && found[8];
+  for (PlyProperty& property : vertex->properties) {
+    // Some colour channels only are not a colour: read and ignored, as other properties are.
+    if (!header->has_colors && property.component >= Component::kRed) {
+      property.component = Component::kNotAComponent;
+    }
+    if (property.component == Component::kNotAComponent) header->ignored.push_back(property.name);
   }
   return absl::OkStatus();
 }
@@ -319,7 +343,9 @@ absl::Status ReadAsciiInstance(const PlyElement& element, std::string_view line,
         return ErrorAt(where, absl::StrCat("property '", property.name, "': ", Quote(token),
                                            " is not a number"));
       }
-      if (property.component != Component::kNotAComponent) (*values)[property.component] = *value;
+      if (property.component != Component::kNotAComponent) {
+        (*values)[property.component] = *value * property.scale;
+      }
       if (property.list_count_type) KeepListItem(property, *value, polygons);
     }
   }
@@ -330,12 +356,13 @@ absl::Status ReadAsciiInstance(const PlyElement& element, std::string_view line,
 }
 
 // Reads every instance of `element`; when `cloud` is set (the vertex element) appends the points.
-absl::Status ReadAsciiElement(const PlyElement& element, bool has_normals, LineCursor& lines,
+absl::Status ReadAsciiElement(const PlyElement& element, const PlyHeader& header, LineCursor& lines,
                               PointCloud* cloud, PlyPolygons* polygons) {
   if (cloud != nullptr) {
     const std::uint64_t max_lines =
         io_internal::MaxTextLines(lines.rest().size(), element.properties.size());
-    io_internal::ReservePoints(element.count, max_lines, has_normals, cloud);
+    io_internal::ReservePoints(element.count, max_lines, header.has_normals, cloud,
+                               header.has_colors);
   }
   std::string_view line;
   PointValues values{};
@@ -350,7 +377,8 @@ absl::Status ReadAsciiElement(const PlyElement& element, bool has_normals, LineC
       return s;
     }
     if (cloud != nullptr) {
-      if (absl::Status s = AppendPoint(values, has_normals, where, cloud); !s.ok()) return s;
+      if (absl::Status s = AppendPoint(values, header.has_normals, where, cloud); !s.ok()) return s;
+      if (header.has_colors) cloud->colors.push_back(io_internal::ColorOf(values));
     }
   }
   return absl::OkStatus();
@@ -360,9 +388,7 @@ absl::Status ReadAsciiBody(const PlyHeader& header, LineCursor& lines, PointClou
                            PlyPolygons* polygons) {
   for (const PlyElement& element : header.elements) {
     PointCloud* destination = element.name == kVertex ? cloud : nullptr;
-    if (absl::Status s =
-            ReadAsciiElement(element, header.has_normals, lines, destination, polygons);
-        !s.ok()) {
+    if (absl::Status s = ReadAsciiElement(element, header, lines, destination, polygons); !s.ok()) {
       return s;
     }
   }
@@ -463,14 +489,14 @@ absl::Status ReadBinaryInstance(const PlyElement& element, const Location& where
     absl::StatusOr<const char*> data = TakeBytes(property.type.size, property, where, in);
     if (!data.ok()) return data.status();
     if (property.component != Component::kNotAComponent) {
-      (*values)[property.component] = DecodeScalar(*data, property.type, in.order);
+      (*values)[property.component] = DecodeScalar(*data, property.type, in.order) * property.scale;
     }
   }
   return absl::OkStatus();
 }
 
 // Reads every instance of `element`; when `cloud` is set (the vertex element) appends the points.
-absl::Status ReadBinaryElement(const PlyElement& element, bool has_normals, BinaryInput& in,
+absl::Status ReadBinaryElement(const PlyElement& element, const PlyHeader& header, BinaryInput& in,
                                PointCloud* cloud, PlyPolygons* polygons) {
   if (absl::Status status = CheckBinaryCountFits(element, in); !status.ok()) return status;
   if (cloud == nullptr && !HasLists(element)) {  // Fixed-size records: nothing to check inside.
@@ -478,7 +504,8 @@ absl::Status ReadBinaryElement(const PlyElement& element, bool has_normals, Bina
     return absl::OkStatus();
   }
   if (cloud != nullptr) {
-    io_internal::ReservePoints(element.count, element.count, has_normals, cloud);
+    io_internal::ReservePoints(element.count, element.count, header.has_normals, cloud,
+                               header.has_colors);
   }
   PointValues values{};
   for (std::uint64_t i = 0; i < element.count; ++i) {
@@ -487,7 +514,8 @@ absl::Status ReadBinaryElement(const PlyElement& element, bool has_normals, Bina
       return s;
     }
     if (cloud != nullptr) {
-      if (absl::Status s = AppendPoint(values, has_normals, where, cloud); !s.ok()) return s;
+      if (absl::Status s = AppendPoint(values, header.has_normals, where, cloud); !s.ok()) return s;
+      if (header.has_colors) cloud->colors.push_back(io_internal::ColorOf(values));
     }
   }
   return absl::OkStatus();
@@ -502,8 +530,7 @@ absl::Status ReadBinaryBody(const PlyHeader& header, std::string_view bytes,
                     .offset = data_offset};
   for (const PlyElement& element : header.elements) {
     PointCloud* destination = element.name == kVertex ? cloud : nullptr;
-    if (absl::Status s = ReadBinaryElement(element, header.has_normals, in, destination, polygons);
-        !s.ok()) {
+    if (absl::Status s = ReadBinaryElement(element, header, in, destination, polygons); !s.ok()) {
       return s;
     }
   }
@@ -530,21 +557,11 @@ std::string_view PlyFormatName(PlyEncoding encoding) {
   return "ascii";
 }
 
-std::string PlyHeaderText(const PointCloud& cloud, PlyEncoding encoding) {
-  std::string header =
-      absl::StrCat("ply\nformat ", ToAbsl(PlyFormatName(encoding)),
-                   " 1.0\ncomment written by mlsreg\nelement vertex ", cloud.size(),
-                   "\nproperty double x\nproperty double y\nproperty double z\n");
-  if (io_internal::WritesNormals(cloud)) {
-    header += "property double nx\nproperty double ny\nproperty double nz\n";
-  }
-  header += "end_header\n";
-  return header;
-}
-
 }  // namespace
 
-absl::StatusOr<PointCloud> ParsePly(std::string_view bytes) {
+namespace io_internal {
+
+absl::StatusOr<CloudFile> ParsePlyFile(std::string_view bytes) {
   LineCursor lines(bytes);
   absl::StatusOr<PlyHeader> header = ParsePlyHeader(lines);
   if (!header.ok()) return header.status();
@@ -553,7 +570,45 @@ absl::StatusOr<PointCloud> ParsePly(std::string_view bytes) {
                                   ? ReadAsciiBody(*header, lines, &cloud, nullptr)
                                   : ReadBinaryBody(*header, bytes, lines.offset(), &cloud, nullptr);
   if (!status.ok()) return status;
-  return io_internal::FinishCloud(kPly, std::move(cloud));
+  absl::StatusOr<PointCloud> finished = FinishCloud(kPly, std::move(cloud));
+  if (!finished.ok()) return finished.status();
+  CloudFile file{*std::move(finished), {}};
+  if (!header->ignored.empty()) {
+    file.notes.push_back(absl::StrCat("PLY: vertex properties read and ignored: ",
+                                      absl::StrJoin(header->ignored, ", ")));
+  }
+  return file;
+}
+
+std::string PlyBytes(const PointCloud& cloud, PlyEncoding encoding, const ScalarFields& scalars) {
+  std::string out = absl::StrCat("ply\nformat ", ToAbsl(PlyFormatName(encoding)),
+                                 " 1.0\ncomment written by mlsreg\nelement vertex ", cloud.size(),
+                                 "\nproperty double x\nproperty double y\nproperty double z\n");
+  if (WritesNormals(cloud)) out += "property double nx\nproperty double ny\nproperty double nz\n";
+  for (const auto& [name, values] : scalars) absl::StrAppend(&out, "property float ", name, "\n");
+  if (WritesColors(cloud)) out += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+  out += "end_header\n";
+  const RecordLayout layout{.scalars = &scalars, .colors = ColorEncoding::kChannels};
+  switch (encoding) {
+    case PlyEncoding::kAscii:
+      AppendRecordsAsText(cloud, layout, ' ', &out);
+      break;
+    case PlyEncoding::kBinaryLittleEndian:
+      AppendRecordsAsBinary(cloud, layout, std::endian::little, &out);
+      break;
+    case PlyEncoding::kBinaryBigEndian:
+      AppendRecordsAsBinary(cloud, layout, std::endian::big, &out);
+      break;
+  }
+  return out;
+}
+
+}  // namespace io_internal
+
+absl::StatusOr<PointCloud> ParsePly(std::string_view bytes) {
+  absl::StatusOr<CloudFile> file = io_internal::ParsePlyFile(bytes);
+  if (!file.ok()) return file.status();
+  return std::move(file->cloud);
 }
 
 absl::StatusOr<TriangleMesh> ParsePlyMesh(std::string_view bytes) {
@@ -585,19 +640,7 @@ absl::StatusOr<TriangleMesh> ParsePlyMesh(std::string_view bytes) {
 }
 
 std::string SerializePly(const PointCloud& cloud, PlyEncoding encoding) {
-  std::string out = PlyHeaderText(cloud, encoding);
-  switch (encoding) {
-    case PlyEncoding::kAscii:
-      io_internal::AppendPointsAsText(cloud, &out);
-      break;
-    case PlyEncoding::kBinaryLittleEndian:
-      io_internal::AppendPointsAsBinary(cloud, std::endian::little, &out);
-      break;
-    case PlyEncoding::kBinaryBigEndian:
-      io_internal::AppendPointsAsBinary(cloud, std::endian::big, &out);
-      break;
-  }
-  return out;
+  return io_internal::PlyBytes(cloud, encoding, {});
 }
 
 }  // namespace mlsreg

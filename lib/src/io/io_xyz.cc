@@ -1,4 +1,5 @@
-// XYZ / CSV reader and writer: one point per line, "x y z" or "x y z nx ny nz". See mlsreg/io.h.
+// XYZ / CSV reader and writer: one point per line, columns named by a header line, the caller or
+// their count (table_columns.h). See mlsreg/io.h.
 
 #include <array>
 #include <cstddef>
@@ -7,16 +8,20 @@
 #include <string>
 #include <string_view>
 #include <utility>
+#include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "io_internal.h"
 #include "mlsreg/io/io.h"
+#include "table_columns.h"
 
 namespace mlsreg {
 namespace {
 
+using io_internal::AtLine;
 using io_internal::ErrorAt;
 using io_internal::IsSpace;
 using io_internal::Location;
@@ -45,17 +50,11 @@ bool HasNoNumber(std::string_view line) {
   return true;
 }
 
-// The fields of one data line.
-struct LineFields {
-  static constexpr std::size_t kMaxKept = 6;
-  std::array<std::string_view, kMaxKept> first;  // the first (up to) six fields
-  std::size_t count = 0;                         // how many fields the line has in all
-};
-
 // Splits `line` into fields separated by whitespace and/or one comma. A comma with no field before
 // or after it (",1,2", "1,,2", "1,2,") is an error: an empty field is a missing value.
-absl::Status SplitFields(std::string_view line, const Location& where, LineFields* fields) {
-  fields->count = 0;
+absl::Status SplitFields(std::string_view line, const Location& where,
+                         std::vector<std::string_view>* fields) {
+  fields->clear();
   std::size_t pos = 0;
   const auto skip_spaces = [&] {
     while (pos < line.size() && IsSpace(line[pos])) ++pos;
@@ -65,10 +64,7 @@ absl::Status SplitFields(std::string_view line, const Location& where, LineField
     if (line[pos] == ',') return ErrorAt(where, "empty field (a comma with no value before it)");
     const std::size_t begin = pos;
     while (pos < line.size() && !IsSeparator(line[pos])) ++pos;
-    if (fields->count < LineFields::kMaxKept) {
-      fields->first[fields->count] = line.substr(begin, pos - begin);
-    }
-    ++fields->count;
+    fields->push_back(line.substr(begin, pos - begin));
     skip_spaces();
     if (pos < line.size() && line[pos] == ',') {
       ++pos;
@@ -79,66 +75,93 @@ absl::Status SplitFields(std::string_view line, const Location& where, LineField
   return absl::OkStatus();
 }
 
-// The column count every data line must have: 3 or 6, set by the first data line.
-struct ColumnRule {
-  std::size_t columns = 0;  // 0 until the first data line
-  std::uint64_t line = 0;   // the line that set it
-
-  absl::Status Check(std::size_t count, const Location& where) {
-    if (columns == 0) {
-      if (count != 3 && count != 6) {
-        return ErrorAt(where, absl::StrCat("has ", count,
-                                           " fields; expected 3 (x y z) or 6 (x y z nx ny nz)"));
-      }
-      columns = count;
-      line = where.position;
-      return absl::OkStatus();
-    }
-    if (count != columns) {
-      return ErrorAt(where, absl::StrCat("has ", count, " fields but line ", line, " has ", columns,
-                                         "; every line must have the same count"));
-    }
-    return absl::OkStatus();
+// The columns: named by `options`, by the header line, or by the first data line's count.
+absl::StatusOr<io_internal::ColumnLayout> LayoutOf(const ReadOptions& options,
+                                                   const std::vector<std::string_view>& header,
+                                                   std::size_t first_count, const Location& where) {
+  if (!options.columns.empty())
+    return io_internal::LayoutFromNames(options.columns, "the columns given");
+  if (!header.empty()) {
+    return io_internal::LayoutFromNames(std::vector<std::string>(header.begin(), header.end()),
+                                        "the header line");
   }
-};
+  absl::StatusOr<io_internal::ColumnLayout> layout = io_internal::LayoutFromCount(first_count);
+  if (!layout.ok()) return ErrorAt(where, std::string(layout.status().message()));
+  return layout;
+}
 
 }  // namespace
 
-absl::StatusOr<PointCloud> ParseXyz(std::string_view bytes) {
-  io_internal::LineCursor lines(bytes);
-  PointCloud cloud;
-  ColumnRule rule;
+namespace io_internal {
+
+absl::StatusOr<CloudFile> ParseXyzFile(std::string_view bytes, const ReadOptions& options) {
+  LineCursor lines(bytes);
+  std::optional<TableCloud> table;
+  std::vector<std::string_view> header, fields;
+  std::uint64_t first_data_line = 0;
   bool before_first_content_line = true;
-  LineFields fields;
-  io_internal::PointValues values{};
+  std::vector<double> values;
   std::string_view line;
   while (lines.Next(&line)) {
     if (IsBlankOrComment(line)) continue;
-    if (std::exchange(before_first_content_line, false) && HasNoNumber(line)) continue;  // Header.
-    const Location where = {kXyz, Location::Unit::kLine, lines.line_number(), "point",
-                            cloud.size()};
-    if (absl::Status s = SplitFields(line, where, &fields); !s.ok()) return s;
-    if (absl::Status s = rule.Check(fields.count, where); !s.ok()) return s;
-    for (std::size_t k = 0; k < fields.count; ++k) {
-      const std::optional<double> value = io_internal::ParseDouble(fields.first[k]);
-      if (!value) {
-        return ErrorAt(where,
-                       absl::StrCat(io_internal::Quote(fields.first[k]), " is not a number"));
+    if (std::exchange(before_first_content_line, false) && HasNoNumber(line)) {  // Header.
+      if (absl::Status s = SplitFields(line, AtLine(kXyz, lines.line_number()), &header); !s.ok()) {
+        return s;
       }
+      continue;
+    }
+    const Location where = {kXyz, Location::Unit::kLine, lines.line_number(), "point",
+                            table ? table->size() : 0};
+    if (absl::Status s = SplitFields(line, where, &fields); !s.ok()) return s;
+    if (!table) {
+      absl::StatusOr<ColumnLayout> layout = LayoutOf(options, header, fields.size(), where);
+      if (!layout.ok()) return layout.status();
+      table.emplace(kXyz, *std::move(layout));
+      table->Reserve(MaxTextLines(lines.rest().size() + line.size() + 1, fields.size()));
+      first_data_line = lines.line_number();
+      values.resize(table->layout().roles.size());
+    }
+    if (fields.size() != values.size()) {
+      return ErrorAt(where, absl::StrCat("has ", fields.size(), " fields but ",
+                                         table->layout().origin.empty()
+                                             ? absl::StrCat("line ", first_data_line, " has ")
+                                             : absl::StrCat(table->layout().origin, " names "),
+                                         values.size(), "; every line must have the same count"));
+    }
+    for (std::size_t k = 0; k < fields.size(); ++k) {
+      const std::optional<double> value = ParseDouble(fields[k]);
+      if (!value) return ErrorAt(where, absl::StrCat(Quote(fields[k]), " is not a number"));
       values[k] = *value;
     }
-    const bool with_normal = fields.count == 6;
-    if (absl::Status s = io_internal::AppendPoint(values, with_normal, where, &cloud); !s.ok()) {
-      return s;
-    }
+    if (absl::Status s = table->AddRow(values.data(), where); !s.ok()) return s;
   }
-  return io_internal::FinishCloud(kXyz, std::move(cloud));
+  if (!table) return absl::InvalidArgumentError("XYZ file contains no points");
+  return std::move(*table).Finish();
 }
 
-std::string SerializeXyz(const PointCloud& cloud) {
+}  // namespace io_internal
+
+absl::StatusOr<PointCloud> ParseXyz(std::string_view bytes) {
+  absl::StatusOr<CloudFile> file = io_internal::ParseXyzFile(bytes, {});
+  if (!file.ok()) return file.status();
+  return std::move(file->cloud);
+}
+
+namespace io_internal {
+
+std::string XyzText(const PointCloud& cloud, const ScalarFields& scalars, char separator) {
+  std::vector<std::string> names = {"x", "y", "z"};
+  if (WritesNormals(cloud)) names.insert(names.end(), {"nx", "ny", "nz"});
+  for (const auto& [name, values] : scalars) names.push_back(name);
+  if (WritesColors(cloud)) names.insert(names.end(), {"r", "g", "b"});
   std::string out;
-  io_internal::AppendPointsAsText(cloud, &out);
+  if (names.size() > 3) out = absl::StrCat(absl::StrJoin(names, std::string(1, separator)), "\n");
+  AppendRecordsAsText(cloud, {.scalars = &scalars}, separator, &out);
   return out;
 }
+
+}  // namespace io_internal
+
+std::string SerializeXyz(const PointCloud& cloud) { return io_internal::XyzText(cloud, {}, ' '); }
 
 }  // namespace mlsreg

@@ -238,6 +238,10 @@ std::string ParameterSpec::Rule() const {
     rule = "must be one of " + enum_names->Choices(", ");
   } else if (type == ParameterType::kBool) {
     rule = "must be true or false";
+  } else if (type == ParameterType::kUint64) {  // the range of its type: a seed
+    rule = "must be an integer from 0 to 18446744073709551615";
+  } else if (std::isinf(range.min) && std::isinf(range.max)) {
+    rule = type == ParameterType::kInt ? "must be an integer" : "must be a finite number";
   } else if (std::isinf(range.max)) {
     rule = absl::StrCat("must be ", range.min_open ? "> " : ">= ", Bound(range.min));
   } else {

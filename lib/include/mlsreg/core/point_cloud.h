@@ -2,7 +2,9 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <cstddef>
+#include <cstdint>
 #include <optional>
 #include <vector>
 
@@ -11,6 +13,8 @@
 namespace mlsreg {
 
 using Vec3 = Eigen::Vector3d;
+// A colour, 8 bits per channel: red, green, blue.
+using Rgb = std::array<std::uint8_t, 3>;
 
 // Positions (and optionally normals) of one scan, in double precision, contiguous.
 // A pinhole camera: pixel (u, v) = (fx x / z + cx, fy y / z + cy) for a point in its frame.
@@ -24,6 +28,9 @@ struct PointCloud {
   std::vector<Vec3> points;
   // Empty, or one unit normal per point.
   std::vector<Vec3> normals;
+  // Empty, or one colour per point, as read from a file (PLY red green blue, PCD rgb, text r g
+  // b). Registration never looks at them; they are carried to the clouds mlsreg writes.
+  std::vector<Rgb> colors;
   // The sensor origin in this cloud's frame, when the file says where it was (PCD VIEWPOINT, or
   // set by the caller). Normals are oriented toward it when known.
   std::optional<Vec3> viewpoint;
@@ -34,11 +41,12 @@ struct PointCloud {
   std::size_t size() const { return points.size(); }
   bool empty() const { return points.empty(); }
   bool has_normals() const { return !normals.empty(); }
+  bool has_colors() const { return !colors.empty(); }
 };
 
 // Checks the invariants every consumer relies on: at least `min_points` points, all coordinates
-// finite, normals either absent or one per point and finite. The message names the first offending
-// point index.
+// finite, normals either absent or one per point and finite, colours absent or one per point. The
+// message names the first offending point index.
 absl::Status ValidatePointCloud(const PointCloud& cloud, std::size_t min_points = 1);
 
 // Positive size (at most 100000 x 100000) and focal lengths, finite principal point; the
