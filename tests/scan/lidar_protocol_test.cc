@@ -50,7 +50,9 @@ std::vector<double> PointToPlaneDistances(const std::vector<Vec3>& points, const
 class LidarProtocolTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    out_ = ::testing::TempDir() + "/lidar_protocol";
+    // One folder per test: ctest runs the tests of this suite in parallel processes.
+    out_ = ::testing::TempDir() + "/lidar_protocol_" +
+           ::testing::UnitTest::GetInstance()->current_test_info()->name();
     std::filesystem::remove_all(out_);
   }
   void TearDown() override { std::filesystem::remove_all(out_); }

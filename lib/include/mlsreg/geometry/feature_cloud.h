@@ -64,7 +64,7 @@ bool ComputeFeatures(FeatureCloud& cloud, const StopCheck& should_stop = {});
 // voxel), grown until the target gives at most kMaxVoxelFeatureSamples of them; features over
 // kFeatureRadiusPerVoxel voxels. A KITTI scan gets 0.75-1 m voxels, an object scan about 3 d.
 inline constexpr double kFeatureVoxelSpacings = 3.0;
-inline constexpr std::size_t kMaxVoxelFeatureSamples = 5000;
+inline constexpr std::size_t kMaxVoxelFeatureSamples = 3000;
 FeatureScale FeatureScaleFor(const std::vector<Vec3>& points, const CloudScales& scales);
 
 // The features of `points` at `scale` on their voxel cloud (voxel centroids, normals from their
