@@ -8,12 +8,14 @@
 #include <string>
 #include <vector>
 
+#include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "cli/cloud_files.h"
 #include "cli/commands.h"
 #include "cli/connection_flags.h"
 #include "cli/exit_codes.h"
 #include "cli/registration_flags.h"
+#include "cli/report.h"
 #include "mlsreg/core/parallel_for.h"
 #include "mlsreg/evaluation/metrics.h"
 #include "mlsreg/io/io.h"
@@ -33,7 +35,7 @@ struct AlignArgs {
   bool cached = false;    // with --server: --scans are ids of targets on the server
   bool resample = false;  // --merged onto the joint MLS surface
   SurfaceResampling resampling;
-  RegistrationFlags flags{Method::kMlsSicp};
+  RegistrationFlags flags;  // edges by method auto, as registrations
   ConnectionFlags connection;
 };
 
@@ -151,11 +153,16 @@ int RunAlign(const AlignArgs& args) {
   for (const AlignEdge& e : result->edges) {
     std::printf("  %-24s %-24s %7.1f%% %8.3f %8.3f %6s\n", Name(args.scans[e.from]).c_str(),
                 Name(args.scans[e.to]).c_str(), 100.0 * e.overlap, e.residual_before_d,
-                e.residual_after_d, e.kept ? "yes" : (e.trusted ? "NO" : "NO (overlap)"));
+                e.residual_after_d, e.kept ? "yes" : (e.trusted ? "NO" : "NO (not verified)"));
   }
   if (options.pairs == PairPolicy::kLoop) {
-    std::printf("loop closure of the chained edges: %.3f deg, %.3f d\n",
-                result->loop_closure_rotation_deg, result->loop_closure_error_d);
+    std::printf("loop closure of the chained edges: %.3f deg, %.3f d%s\n",
+                result->loop_closure_rotation_deg, result->loop_closure_error_d,
+                result->loop_closure_exceeded
+                    ? absl::StrFormat("  WARNING: beyond %.3g deg or %.3g d: an edge is wrong",
+                                      options.max_loop_closure_deg, options.max_loop_closure_d)
+                          .c_str()
+                    : "");
   }
   // Ground truth in the anchor's frame, as the result.
   std::vector<double> rotation_error, translation_error;
@@ -207,6 +214,9 @@ int RunAlign(const AlignArgs& args) {
     j["method"] = std::string(MethodName(options.edge.method));
     j["loop_closure_rotation_deg"] = result->loop_closure_rotation_deg;
     j["loop_closure_error_d"] = result->loop_closure_error_d;
+    j["loop_closure_exceeded"] = result->loop_closure_exceeded;
+    j["unverified_scans"] = nlohmann::json::array();
+    for (int i : result->unverified_scans) j["unverified_scans"].push_back(args.scans[i]);
     j["seconds"] = result->seconds;
     for (std::size_t i = 0; i < result->poses.size(); ++i) {
       nlohmann::json scan = {{"scan", args.scans[i]},
@@ -231,11 +241,21 @@ int RunAlign(const AlignArgs& args) {
            {"residual_before_d", e.residual_before_d},
            {"residual_after_d", e.residual_after_d},
            {"trusted", e.trusted},
-           {"kept", e.kept}});
+           {"kept", e.kept},
+           {"verification", VerificationJson(e.verification)}});
     }
     std::ofstream out(args.json);
     out << j.dump(2) << "\n";
     if (!out) return Fail(absl::UnavailableError("cannot write --json file '" + args.json + "'"));
+  }
+  if (!result->unverified_scans.empty()) {
+    std::string names;
+    for (int i : result->unverified_scans) absl::StrAppend(&names, " ", Name(args.scans[i]));
+    std::fprintf(stderr,
+                 "mlsreg align: NOT VERIFIED: no chain of verified edges joins these scans to %s; "
+                 "do not trust their poses:%s\n",
+                 Name(args.scans[args.anchor]).c_str(), names.c_str());
+    return kExitNotVerified;
   }
   return 0;
 }

@@ -11,7 +11,7 @@ inline constexpr int kExitOk = 0;
 inline constexpr int kExitFailed = 1;       // I/O, server, internal error; a failed batch job
 inline constexpr int kExitBadInput = 2;     // bad arguments or input (INVALID_ARGUMENT)
 inline constexpr int kExitMissed = 3;       // eval: some run failed or missed 5 d
-inline constexpr int kExitNotVerified = 4;  // register, verify: the result does not verify
+inline constexpr int kExitNotVerified = 4;  // register, verify, align: the result does not verify
 
 struct ExitCode {
   int code;
@@ -26,9 +26,10 @@ inline constexpr ExitCode kExitCodes[] = {
      "internal error (batch: some job failed; health: some server is not serving)"},
     {kExitBadInput, "all", "bad arguments or input (the message names the flag or field)"},
     {kExitMissed, "eval", "some run failed or missed the 5 d success threshold"},
-    {kExitNotVerified, "register, verify",
+    {kExitNotVerified, "register, verify, align",
      "the registration ran, but its result does not verify against the target (verify: the "
-     "given transform does not): the printed transform must not be trusted"},
+     "given transform does not; align: some scan is joined to the anchor by no verified edge, "
+     "and the message names it): the printed transform must not be trusted"},
 };
 
 }  // namespace mlsreg::cli

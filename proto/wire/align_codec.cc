@@ -56,6 +56,7 @@ void ToProto(const AlignEdge& edge, v1::AlignEdge* out) {
   out->set_residual_before_d(edge.residual_before_d);
   out->set_residual_after_d(edge.residual_after_d);
   if (!edge.registration.trace.empty()) out->set_rmse_d(edge.registration.trace.back().rmse_d);
+  ToProto(edge.verification, out->mutable_verification());
 }
 
 AlignEdge FromProto(const v1::AlignEdge& p) {
@@ -74,6 +75,8 @@ AlignEdge FromProto(const v1::AlignEdge& p) {
   edge.kept = p.kept();
   edge.residual_before_d = p.residual_before_d();
   edge.residual_after_d = p.residual_after_d();
+  edge.verification = FromProto(p.verification());
+  edge.registration.verification = edge.verification;
   IterationReport last;
   last.iteration = p.iterations();
   last.rmse_d = p.rmse_d();
@@ -92,6 +95,8 @@ void ToProto(const AlignResult& r, v1::AlignScansResult* out) {
   out->set_sampling_distance(r.sampling_distance);
   out->set_graph_iterations(r.graph_iterations);
   out->set_seconds(r.seconds);
+  out->set_loop_closure_exceeded(r.loop_closure_exceeded);
+  for (int i : r.unverified_scans) out->add_unverified_scans(i);
 }
 
 AlignResult FromProto(const v1::AlignScansResult& p) {
@@ -105,6 +110,8 @@ AlignResult FromProto(const v1::AlignScansResult& p) {
   r.sampling_distance = p.sampling_distance();
   r.graph_iterations = p.graph_iterations();
   r.seconds = p.seconds();
+  r.loop_closure_exceeded = p.loop_closure_exceeded();
+  r.unverified_scans.assign(p.unverified_scans().begin(), p.unverified_scans().end());
   return r;
 }
 

@@ -14,8 +14,6 @@ Termination TerminationFromProto(v1::Termination t) {
       .value_or(Termination::kMaxIterations);
 }
 
-namespace {
-
 void ToProto(const VerificationScore& s, v1::VerificationScore* out) {
   out->set_samples(s.samples);
   out->set_inliers(s.inliers);
@@ -54,7 +52,9 @@ VerificationScore FromProto(const v1::VerificationScore& p) {
   return s;
 }
 
-void ToProto(const AutoReport& r, v1::AutoReport* out) {
+namespace {
+
+void AutoReportToProto(const AutoReport& r, v1::AutoReport* out) {
   for (const AutoCandidate& c : r.candidates) {
     v1::AutoCandidate* p = out->add_candidates();
     p->set_origin(static_cast<v1::CandidateOrigin>(
@@ -77,7 +77,7 @@ void ToProto(const AutoReport& r, v1::AutoReport* out) {
   out->set_final_seconds(r.timings.final);
 }
 
-AutoReport FromProto(const v1::AutoReport& p) {
+AutoReport AutoReportFromProto(const v1::AutoReport& p) {
   AutoReport r;
   for (const v1::AutoCandidate& c : p.candidates()) {
     AutoCandidate a;
@@ -154,7 +154,7 @@ void ToProto(const RegistrationResult& r, v1::Result* out) {
   out->set_mls_radius_auto(r.mls_radius_auto);
   out->set_target_noise_sigma_d(r.target_noise_d);
   out->set_source_noise_sigma_d(r.source_noise_d);
-  if (r.auto_report) ToProto(*r.auto_report, out->mutable_auto_report());
+  if (r.auto_report) AutoReportToProto(*r.auto_report, out->mutable_auto_report());
   if (r.verification) ToProto(*r.verification, out->mutable_verification());
 }
 
@@ -175,7 +175,7 @@ RegistrationResult FromProto(const v1::Result& p) {
   r.mls_radius_auto = p.mls_radius_auto();
   r.target_noise_d = p.target_noise_sigma_d();
   r.source_noise_d = p.source_noise_sigma_d();
-  if (p.has_auto_report()) r.auto_report = FromProto(p.auto_report());
+  if (p.has_auto_report()) r.auto_report = AutoReportFromProto(p.auto_report());
   if (p.has_verification()) r.verification = FromProto(p.verification());
   return r;
 }

@@ -237,6 +237,8 @@ class AlignResult:
     chain_deviation_d: list
     loop_closure_rotation_deg: float
     loop_closure_error_d: float
+    loop_closure_exceeded: bool
+    unverified_scans: list
     sampling_distance: float
     graph_iterations: int
     seconds: float

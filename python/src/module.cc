@@ -229,7 +229,8 @@ py::dict AlignEdgeToPython(const AlignEdge& e) {
                   py::arg("correspondences") = e.correspondences,
                   py::arg("residual_before_d") = e.residual_before_d,
                   py::arg("residual_after_d") = e.residual_after_d, py::arg("trusted") = e.trusted,
-                  py::arg("kept") = e.kept);
+                  py::arg("kept") = e.kept,
+                  py::arg("verdict") = std::string(VerdictName(e.verification.verdict)));
 }
 
 AlignOptions AlignOptionsFromPython(py::object poses, const std::string& pairs,
@@ -262,6 +263,8 @@ py::dict AlignResultToPython(const AlignResult& r) {
                   py::arg("edges") = edges, py::arg("chain_deviation_d") = r.chain_deviation_d,
                   py::arg("loop_closure_rotation_deg") = r.loop_closure_rotation_deg,
                   py::arg("loop_closure_error_d") = r.loop_closure_error_d,
+                  py::arg("loop_closure_exceeded") = r.loop_closure_exceeded,
+                  py::arg("unverified_scans") = r.unverified_scans,
                   py::arg("sampling_distance") = r.sampling_distance,
                   py::arg("graph_iterations") = r.graph_iterations, py::arg("seconds") = r.seconds);
 }

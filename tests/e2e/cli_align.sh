@@ -75,4 +75,26 @@ set -e
 [ "$code2" -eq 2 ] && grep -q "1 poses for 2 scans" "$work/bad2.txt" || fail "pose count: $code2 $(cat "$work/bad2.txt")"
 [ "$code3" -eq 2 ] && grep -q -- "--pairs" "$work/bad3.txt" || fail "bad --pairs: $code3 $(cat "$work/bad3.txt")"
 [ "$code4" -eq 2 ] && grep -q -- "give --merged" "$work/bad4.txt" || fail "--resample alone: $code4 $(cat "$work/bad4.txt")"
+
+# The six bunny scans of the issue that found silent failures, default flags: edges by method
+# auto put every pose within 1 degree of bun.conf. With MLS-SICP edges two poses end far off; the
+# loop closure then exceeds its bound and says so, in the text and in --json.
+six=("$B/bun000.ply" "$B/bun045.ply" "$B/bun090.ply" "$B/bun180.ply" "$B/bun270.ply" "$B/bun315.ply")
+"$MLSREG" align --scans "${six[@]}" --gt "$B/bun.conf" --threads 2 --json "$work/six.json" \
+  > "$work/six.txt" || fail "align six: exit $?: $(tail -3 "$work/six.txt")"
+grep -q "edges by auto" "$work/six.txt" || fail "default edges: $(head -1 "$work/six.txt")"
+python3 - "$work/six.json" <<'PY' || fail "six poses: $(cat "$work/six.txt")"
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j["method"] == "auto", j["method"]
+assert max(s["rotation_error_deg"] for s in j["scans"]) < 1.0, [s["rotation_error_deg"] for s in j["scans"]]
+assert j["unverified_scans"] == [], j["unverified_scans"]
+assert all(e["trusted"] == e["verification"]["verified"] for e in j["edges"]), j["edges"]
+PY
+"$MLSREG" align --scans "${six[@]}" --gt "$B/bun.conf" --threads 2 --method mls-sicp \
+  --json "$work/mls.json" > "$work/mls.txt" || true
+grep -q "loop closure of the chained edges: .*WARNING: beyond 2 deg" "$work/mls.txt" \
+  || fail "no loop-closure warning: $(grep 'loop closure' "$work/mls.txt")"
+python3 -c "import json,sys; assert json.load(open(sys.argv[1]))['loop_closure_exceeded']" \
+  "$work/mls.json" || fail "loop_closure_exceeded not in --json"
 echo "cli align: all checks passed"

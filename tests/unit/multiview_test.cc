@@ -200,6 +200,27 @@ TEST(AlignScansTest, ARingOfViewsIsRecoveredFromPerturbedPoses) {
   EXPECT_EQ(merged.size(), total);
 }
 
+// A scan of something else joins the ring by an edge that cannot verify: its pose rests on no
+// verified edge, and the result names it.
+TEST(AlignScansTest, AScanJoinedByNoVerifiedEdgeIsNamed) {
+  Ring ring = MakeRing(4, 0.0, 3);
+  PointCloud other;  // a plane patch the size of a view, where scan 3 was
+  for (const Vec3& p : ring.scans[3].points) other.points.emplace_back(p.x(), p.y(), 0.0);
+  ring.scans[3] = other;
+  AlignOptions options;
+  options.pairs = PairPolicy::kSequential;
+  options.initial_poses = ring.truth;
+  options.threads = 2;
+  auto result = AlignScans(ring.scans, options);
+  ASSERT_TRUE(result.ok()) << result.status();
+  ASSERT_EQ(result->edges.size(), 3u);
+  EXPECT_TRUE(result->edges[0].trusted);
+  EXPECT_TRUE(result->edges[1].trusted);
+  EXPECT_FALSE(result->edges[2].trusted);  // (2, 3)
+  EXPECT_FALSE(result->edges[2].verification.verified());
+  EXPECT_EQ(result->unverified_scans, std::vector<int>{3});
+}
+
 TEST(AlignScansTest, OverlapPairsAreThoseThatOverlapUnderTheInitialPoses) {
   const Ring ring = MakeRing(6, 0.0, 5);
   AlignOptions options;

@@ -377,6 +377,23 @@ absl::StatusOr<AlignResult> AlignTargets(const std::vector<std::shared_ptr<const
     for (const AlignEdge& e : result.edges) loop = loop * e.relative;  // (0,1) ... (n-1,0)
     result.loop_closure_rotation_deg = RotationDegrees(loop);
     result.loop_closure_error_d = RmsBetween(targets[0]->points(), loop, Matrix4::Identity()) / d;
+    result.loop_closure_exceeded =
+        result.loop_closure_rotation_deg > options.max_loop_closure_deg ||
+        result.loop_closure_error_d > options.max_loop_closure_d;
+  }
+  // The scans a chain of trusted (verified) edges joins to the anchor.
+  std::vector<char> supported(n, 0);
+  supported[options.anchor] = 1;
+  for (bool grew = true; grew;) {
+    grew = false;
+    for (const AlignEdge& e : result.edges) {
+      if (!e.trusted || supported[e.from] == supported[e.to]) continue;
+      supported[e.from] = supported[e.to] = 1;
+      grew = true;
+    }
+  }
+  for (int i = 0; i < n; ++i) {
+    if (!supported[i]) result.unverified_scans.push_back(i);
   }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;

@@ -5,7 +5,8 @@
 //   2. Otherwise global candidates come from FPFH matches between the voxel clouds at the
 //      feature scale (registration/global_candidates.h); each is aligned on the voxel clouds and
 //      verified, and the start competes with them.
-//   3. The best candidates are refined by MLS-SICP in turn until one verifies.
+//   3. The best candidates are refined by MLS-SICP in turn until one verifies. When none does,
+//      the start's result is returned, not verified.
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -164,6 +165,13 @@ class AutoRegistration {
         best = std::move(winner);
       }
       if (score.verified()) break;
+    }
+    // Nothing verified: the caller's start is the best information left, so its refinement is
+    // returned (not verified) rather than a pose from anywhere that merely explains more.
+    if (!best_score_.verified() && report_.chosen != 0) {
+      report_.chosen = 0;
+      best_score_ = report_.candidates[0].score;
+      best = std::move(start);
     }
     report_.timings.final = Seconds(phase);
     return Finish(std::move(*best));

@@ -42,12 +42,11 @@ struct AlignOptions {
   // rough: a 10 degree error moves the rim of a scan 230 d across by 20 d.
   double min_overlap = 0.3;
   double overlap_distance_d = 20.0;
-  // Every edge's registration; the method defaults to MLS-SICP.
-  RegistrationOptions edge = [] {
-    RegistrationOptions o;
-    o.method = Method::kMlsSicp;
-    return o;
-  }();
+  // Every edge's registration, by default method auto (verified; global when its start fails).
+  RegistrationOptions edge;
+  // kLoop: a loop closure beyond either bound is reported (AlignResult::loop_closure_exceeded).
+  double max_loop_closure_deg = 2.0;
+  double max_loop_closure_d = 10.0;
   int anchor = 0;  // the scan whose frame the result is in
   PoseGraphOptions graph;
   int threads = 1;  // edges (and target builds) registered at once
@@ -58,12 +57,12 @@ struct AlignEdge {
   Matrix4 relative = Matrix4::Identity();  // maps `to` into `from`'s frame
   RegistrationResult registration;
   VerificationScore verification;  // of the edge's result (registration/verification.h)
-  double overlap = 0.0;     // share of `to`'s samples on `from`'s surface after registration
-  int correspondences = 0;  // behind the information matrix
+  double overlap = 0.0;            // share of `to`'s samples on `from`'s surface after registration
+  int correspondences = 0;         // behind the information matrix
   Matrix6 information = Matrix6::Zero();
   double residual_before_d = 0.0, residual_after_d = 0.0;  // pose_graph.h
-  bool trusted = true;  // its registration verified
-  bool kept = true;     // used by the final solve
+  bool trusted = true;                                     // its registration verified
+  bool kept = true;                                        // used by the final solve
 };
 
 struct AlignResult {
@@ -77,6 +76,12 @@ struct AlignResult {
   // the RMS displacement of scan 0's points under it (units of d). Zero otherwise.
   double loop_closure_rotation_deg = 0.0;
   double loop_closure_error_d = 0.0;
+  // kLoop: the closure exceeds AlignOptions::max_loop_closure_deg or max_loop_closure_d: some
+  // edge is wrong, whatever the graph made of it.
+  bool loop_closure_exceeded = false;
+  // Scans joined to the anchor by no chain of verified edges: their poses rest on registrations
+  // that did not verify and must not be trusted (indices, ascending).
+  std::vector<int> unverified_scans;
   double sampling_distance = 0.0;  // the unit d: the mean of the scans' sampling distances
   int graph_iterations = 0;
   double seconds = 0.0;

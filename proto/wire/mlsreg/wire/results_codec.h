@@ -16,6 +16,8 @@ RegistrationResult FromProto(const v1::Result& result);
 v1::Termination TerminationToProto(Termination t);
 Termination TerminationFromProto(v1::Termination t);  // unknown values: kMaxIterations
 void ToProto(const PoseError& error, v1::GroundTruthError* out);
+void ToProto(const VerificationScore& score, v1::VerificationScore* out);
+VerificationScore FromProto(const v1::VerificationScore& score);
 PoseError FromProto(const v1::GroundTruthError& error);
 
 }  // namespace mlsreg::wire
