@@ -40,10 +40,12 @@ std::string FormatIteration(const IterationReport& r) {
 std::string FormatVerification(const VerificationScore& v) {
   const std::string evidence = absl::StrFormat(
       "%.1f %% of the overlap (%d of %d covered samples) within %.4g (%.2f d) of the target's "
-      "surface, RMSE %.3f d; weakest direction: %s, %.1f %% of its %d samples",
+      "surface, RMSE %.3f d; weakest direction: %s, %.1f %% of its %d samples; pull: a step of "
+      "%.3g deg and %.3g would remove %.1f %% of the residuals, settling moves the samples %.3g",
       100.0 * v.inlier_fraction, v.inliers, v.covered, v.inlier_distance, v.inlier_distance_d,
       v.rmse_d, v.WorstDirectionText(), 100.0 * v.worst_direction_fraction,
-      v.worst_direction_samples);
+      v.worst_direction_samples, v.pull_rotation_deg, v.pull_translation, 100.0 * v.pull_fraction,
+      v.settle_displacement);
   if (v.verified()) return "verification: verified: " + evidence;
   return absl::StrFormat("verification: NOT VERIFIED (%s; do not trust the transform): %s",
                          VerdictName(v.verdict), evidence);
@@ -93,6 +95,21 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
           100.0 * c.score.inlier_fraction, c.score.rmse_d, c.iterations, c.seconds,
           static_cast<int>(k) == a->chosen ? "  <- chosen" : "");
     }
+  }
+  const ScaleReport& sc = result.scales;
+  if (sc.working_voxel > 0.0) {
+    out += absl::StrFormat(
+        "scales (units of the clouds, from the data): spacing mean %.4g, median %.4g, 90th "
+        "percentile %.4g; extent %.4g; working voxel %.4g",
+        sc.mean_spacing, sc.median_spacing, sc.spacing_p90, sc.extent, sc.working_voxel);
+    if (sc.capture_start > 0.0) {
+      out += absl::StrFormat("; capture %.4g -> %.4g", sc.capture_start, sc.capture_end);
+    }
+    if (sc.mls_radius > 0.0) out += absl::StrFormat("; MLS radius %.4g", sc.mls_radius);
+    if (sc.verification_band > 0.0) {
+      out += absl::StrFormat("; verification band %.4g", sc.verification_band);
+    }
+    out += "\n";
   }
   if (result.verification) out += FormatVerification(*result.verification) + "\n";
   if (error) {
@@ -149,6 +166,13 @@ nlohmann::json VerificationJson(const VerificationScore& v) {
           {"rmse_d", v.rmse_d},
           {"inlier_distance", v.inlier_distance},
           {"inlier_distance_d", v.inlier_distance_d},
+          {"noise", v.noise},
+          {"residual_scale", v.residual_scale},
+          {"pull_fraction", v.pull_fraction},
+          {"pull_rotation_deg", v.pull_rotation_deg},
+          {"pull_translation", v.pull_translation},
+          {"pull_displacement", v.pull_displacement},
+          {"settle_displacement", v.settle_displacement},
           {"worst_direction", direction},
           {"worst_direction_text", v.WorstDirectionText()},
           {"worst_direction_fraction", v.worst_direction_fraction},
@@ -178,6 +202,15 @@ nlohmann::json ResultJson(std::string_view method, const RegistrationResult& res
                         {"total", result.timings.total}}},
                       {"trace", trace}};
   if (result.verification) j["verification"] = VerificationJson(*result.verification);
+  j["scales"] = {{"mean_spacing", result.scales.mean_spacing},
+                 {"median_spacing", result.scales.median_spacing},
+                 {"spacing_p90", result.scales.spacing_p90},
+                 {"extent", result.scales.extent},
+                 {"working_voxel", result.scales.working_voxel},
+                 {"capture_start", result.scales.capture_start},
+                 {"capture_end", result.scales.capture_end},
+                 {"mls_radius", result.scales.mls_radius},
+                 {"verification_band", result.scales.verification_band}};
   if (const std::optional<AutoReport>& a = result.auto_report) {
     nlohmann::json candidates = nlohmann::json::array();
     for (const AutoCandidate& c : a->candidates) {

@@ -29,6 +29,13 @@ void ToProto(const VerificationScore& s, v1::VerificationScore* out) {
   out->set_worst_direction_fraction(s.worst_direction_fraction);
   out->set_worst_direction_samples(s.worst_direction_samples);
   out->set_worst_direction_strength(s.worst_direction_strength);
+  out->set_residual_scale(s.residual_scale);
+  out->set_pull_fraction(s.pull_fraction);
+  out->set_pull_rotation_deg(s.pull_rotation_deg);
+  out->set_pull_translation(s.pull_translation);
+  out->set_pull_displacement(s.pull_displacement);
+  out->set_settle_displacement(s.settle_displacement);
+  out->set_noise(s.noise);
 }
 
 VerificationScore FromProto(const v1::VerificationScore& p) {
@@ -49,6 +56,13 @@ VerificationScore FromProto(const v1::VerificationScore& p) {
   s.worst_direction_fraction = p.worst_direction_fraction();
   s.worst_direction_samples = p.worst_direction_samples();
   s.worst_direction_strength = p.worst_direction_strength();
+  s.residual_scale = p.residual_scale();
+  s.pull_fraction = p.pull_fraction();
+  s.pull_rotation_deg = p.pull_rotation_deg();
+  s.pull_translation = p.pull_translation();
+  s.pull_displacement = p.pull_displacement();
+  s.settle_displacement = p.settle_displacement();
+  s.noise = p.noise();
   return s;
 }
 
@@ -156,6 +170,16 @@ void ToProto(const RegistrationResult& r, v1::Result* out) {
   out->set_source_noise_sigma_d(r.source_noise_d);
   if (r.auto_report) AutoReportToProto(*r.auto_report, out->mutable_auto_report());
   if (r.verification) ToProto(*r.verification, out->mutable_verification());
+  v1::Scales* scales = out->mutable_scales();
+  scales->set_mean_spacing(r.scales.mean_spacing);
+  scales->set_median_spacing(r.scales.median_spacing);
+  scales->set_spacing_p90(r.scales.spacing_p90);
+  scales->set_extent(r.scales.extent);
+  scales->set_working_voxel(r.scales.working_voxel);
+  scales->set_capture_start(r.scales.capture_start);
+  scales->set_capture_end(r.scales.capture_end);
+  scales->set_mls_radius(r.scales.mls_radius);
+  scales->set_verification_band(r.scales.verification_band);
 }
 
 RegistrationResult FromProto(const v1::Result& p) {
@@ -177,6 +201,10 @@ RegistrationResult FromProto(const v1::Result& p) {
   r.source_noise_d = p.source_noise_sigma_d();
   if (p.has_auto_report()) r.auto_report = AutoReportFromProto(p.auto_report());
   if (p.has_verification()) r.verification = FromProto(p.verification());
+  const v1::Scales& scales = p.scales();
+  r.scales = {scales.mean_spacing(), scales.median_spacing(), scales.spacing_p90(),
+              scales.extent(),       scales.working_voxel(),  scales.capture_start(),
+              scales.capture_end(),  scales.mls_radius(),     scales.verification_band()};
   return r;
 }
 

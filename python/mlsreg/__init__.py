@@ -144,7 +144,9 @@ class PoseError:
 @dataclasses.dataclass
 class Result:
     """A registration's result. ``trace`` is a structured array (TRACE_DTYPE), one row per
-    iteration; ``auto`` is method auto's report (candidates, verification, stage times)."""
+    iteration; ``verification`` says whether it can be trusted (verdict and evidence, any method);
+    ``scales`` the lengths chosen from the data; ``auto`` is method auto's report (candidates,
+    stage times)."""
 
     transform: np.ndarray
     converged: bool
@@ -160,6 +162,8 @@ class Result:
     source_noise_d: float
     auto: Optional[dict]
     method: str
+    verification: Optional[dict] = None
+    scales: Optional[dict] = None
     # Remote registrations only:
     request_id: Optional[str] = None
     queue_seconds: Optional[float] = None
@@ -169,8 +173,8 @@ class Result:
 
     @property
     def verified(self) -> Optional[bool]:
-        """Method auto: whether the result verified against the target's MLS surface."""
-        return None if self.auto is None else bool(self.auto["verified"])
+        """Whether the result verified against the target (None when verify=False)."""
+        return None if self.verification is None else bool(self.verification["verified"])
 
     def __repr__(self) -> str:
         last = f", rmse_d={self.trace['rmse_d'][-1]:.4g}" if len(self.trace) else ""

@@ -50,9 +50,23 @@ std::string ParameterText(py::handle value) {
 }
 
 py::dict ScoreToPython(const VerificationScore& s) {
-  return py::dict(py::arg("samples") = s.samples, py::arg("inliers") = s.inliers,
-                  py::arg("inlier_fraction") = s.inlier_fraction, py::arg("rmse_d") = s.rmse_d,
-                  py::arg("inlier_distance_d") = s.inlier_distance_d);
+  py::list direction;
+  for (int k = 0; k < 6; ++k) direction.append(s.worst_direction[k]);
+  return py::dict(
+      py::arg("verified") = s.verified(), py::arg("verdict") = std::string(VerdictName(s.verdict)),
+      py::arg("samples") = s.samples, py::arg("covered") = s.covered,
+      py::arg("inliers") = s.inliers, py::arg("inlier_fraction") = s.inlier_fraction,
+      py::arg("explained_fraction") = s.explained_fraction, py::arg("rmse_d") = s.rmse_d,
+      py::arg("inlier_distance_d") = s.inlier_distance_d,
+      py::arg("inlier_distance") = s.inlier_distance, py::arg("worst_direction") = direction,
+      py::arg("worst_direction_text") = s.WorstDirectionText(),
+      py::arg("worst_direction_fraction") = s.worst_direction_fraction,
+      py::arg("worst_direction_samples") = s.worst_direction_samples,
+      py::arg("residual_scale") = s.residual_scale, py::arg("pull_fraction") = s.pull_fraction,
+      py::arg("pull_rotation_deg") = s.pull_rotation_deg,
+      py::arg("pull_translation") = s.pull_translation,
+      py::arg("pull_displacement") = s.pull_displacement,
+      py::arg("settle_displacement") = s.settle_displacement, py::arg("noise") = s.noise);
 }
 
 py::dict AutoToPython(const AutoReport& report) {
@@ -151,6 +165,15 @@ py::dict ResultToPython(const RegistrationResult& result) {
       py::arg("target_noise_d") = result.target_noise_d,
       py::arg("source_noise_d") = result.source_noise_d);
   d["auto"] = result.auto_report ? py::object(AutoToPython(*result.auto_report)) : py::none();
+  d["verification"] =
+      result.verification ? py::object(ScoreToPython(*result.verification)) : py::none();
+  const ScaleReport& sc = result.scales;
+  d["scales"] = py::dict(
+      py::arg("mean_spacing") = sc.mean_spacing, py::arg("median_spacing") = sc.median_spacing,
+      py::arg("spacing_p90") = sc.spacing_p90, py::arg("extent") = sc.extent,
+      py::arg("working_voxel") = sc.working_voxel, py::arg("capture_start") = sc.capture_start,
+      py::arg("capture_end") = sc.capture_end, py::arg("mls_radius") = sc.mls_radius,
+      py::arg("verification_band") = sc.verification_band);
   return d;
 }
 

@@ -117,6 +117,13 @@ def test_register_recovers_the_ground_truth(bun000, bunny_target, gt, near_start
     assert result.timings["total"] > 0
     assert result.sampling_distance == pytest.approx(bunny_target.sampling_distance)
     assert result.auto["early_exit"] and len(result.auto["candidates"]) == 1
+    assert result.verification["verdict"] == "verified" and result.verification["covered"] > 0
+    # The lengths it chose from the data, in the clouds' units (metres for the bunny).
+    scales = result.scales
+    assert scales["mean_spacing"] == pytest.approx(bunny_target.sampling_distance)
+    assert 2 * scales["median_spacing"] <= scales["working_voxel"] < 0.01
+    assert scales["capture_start"] >= scales["capture_end"] > 0
+    assert scales["mls_radius"] == pytest.approx(5 * scales["mean_spacing"], rel=0.2)
 
 
 def test_the_trace_is_a_structured_array_of_every_iteration(bun000, bunny_target, near_start):
@@ -127,7 +134,12 @@ def test_the_trace_is_a_structured_array_of_every_iteration(bun000, bunny_target
     np.testing.assert_array_equal(trace["iteration"], np.arange(1, result.iterations + 1))
     assert (trace["stage"] == "single").all()
     assert (trace["matched"] > 0).all() and np.all(np.diff(trace["elapsed_seconds"]) >= 0)
-    assert result.auto is None and result.verified is None
+    assert result.auto is None and result.verified is True  # every method is verified
+
+
+def test_a_registration_without_verification_says_nothing(bun000, bunny_target, near_start):
+    result = mlsreg.register(bun000, bunny_target, method="cp-sicp", init=near_start, verify=False)
+    assert result.verification is None and result.verified is None
 
 
 def test_a_target_array_and_a_prepared_target_give_the_same_transform(bun000, bun045,

@@ -121,9 +121,9 @@ TEST(VerificationTest, TheTruthVerifiesAndAWrongPoseOrAnotherObjectDoesNot) {
   const Target& target = *bunny.target;
   const VoxelCloud samples =
       BuildVoxelCloud(bunny.source.points, target.voxel_cloud().voxel, bunny.source.viewpoint);
-  const double noise = 0.1 * target.sampling_distance();
+  const NoiseLevels noise{0.1 * target.sampling_distance(), 0.1 * target.sampling_distance()};
   const auto verify = [&](const Matrix4& pose) {
-    return VerifyAlignment(target, samples.points, samples.normals, pose, noise);
+    return VerifyAlignment(target, samples, pose, noise);
   };
   const VerificationScore right = verify(bunny.truth);
   EXPECT_TRUE(right.verified()) << VerdictName(right.verdict);
@@ -142,8 +142,8 @@ TEST(VerificationTest, TheTruthVerifiesAndAWrongPoseOrAnotherObjectDoesNot) {
   for (Vec3& p : sheet.points) p = 0.05 * p + target.points()[0];
   const VoxelCloud sheet_samples =
       BuildVoxelCloud(sheet.points, target.voxel_cloud().voxel, std::nullopt);
-  const VerificationScore other = VerifyAlignment(
-      target, sheet_samples.points, sheet_samples.normals, Matrix4::Identity(), noise);
+  const VerificationScore other =
+      VerifyAlignment(target, sheet_samples, Matrix4::Identity(), noise);
   EXPECT_FALSE(other.verified());
   EXPECT_LT(other.inlier_fraction, 0.5);
 }

@@ -214,8 +214,13 @@ TEST(AlignScansTest, AScanJoinedByNoVerifiedEdgeIsNamed) {
   auto result = AlignScans(ring.scans, options);
   ASSERT_TRUE(result.ok()) << result.status();
   ASSERT_EQ(result->edges.size(), 3u);
-  EXPECT_TRUE(result->edges[0].trusted);
-  EXPECT_TRUE(result->edges[1].trusted);
+  for (int k = 0; k < 2; ++k) {
+    const VerificationScore& v = result->edges[k].verification;
+    EXPECT_TRUE(result->edges[k].trusted)
+        << k << ": " << VerdictName(v.verdict) << ", pull " << v.pull_fraction << ", settles by "
+        << v.settle_displacement << " with a band of " << v.inlier_distance << ", RMSE " << v.rmse_d
+        << " d";
+  }
   EXPECT_FALSE(result->edges[2].trusted);  // (2, 3)
   EXPECT_FALSE(result->edges[2].verification.verified());
   EXPECT_EQ(result->unverified_scans, std::vector<int>{3});

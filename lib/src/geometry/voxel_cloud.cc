@@ -12,6 +12,7 @@ namespace mlsreg {
 std::size_t VoxelCloud::MemoryBytes() const {
   return points.capacity() * sizeof(Vec3) + normals.capacity() * sizeof(Vec3) + valid.capacity() +
          planarity.capacity() * sizeof(float) + spread.capacity() * sizeof(float) +
+         counts.capacity() * sizeof(std::uint32_t) +
          (tree ? tree->MemoryBytes() : 0);
 }
 
@@ -127,6 +128,7 @@ VoxelCloud BuildVoxelCloud(const std::vector<Vec3>& points, double voxel,
   for (std::size_t i = 0; i < n; ++i) {
     if (cloud.spread[i] < 0.0f) cloud.spread[i] = borrowed[i];
   }
+  cloud.counts = std::move(moments.counts);
   return cloud;
 }
 

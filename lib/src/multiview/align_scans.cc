@@ -321,9 +321,9 @@ absl::StatusOr<AlignResult> AlignTargets(const std::vector<std::shared_ptr<const
             edge.verification =
                 edge.registration.verification
                     ? *edge.registration.verification
-                    : VerifyAlignment(*targets[i], voxels.points, voxels.normals, edge.relative,
-                                      CombinedNoise(targets[i]->noise().sigma_d * d_i,
-                                                    targets[j]->noise().sigma_d * d_i));
+                    : VerifyAlignment(*targets[i], voxels, edge.relative,
+                                      {targets[i]->noise().sigma_d * d_i,
+                                       targets[j]->noise().sigma_d * d_i});
             edge.overlap = edge.verification.explained_fraction;
             const Information info = EdgeInformation(*targets[i], samples[j], edge.relative, d);
             edge.information = info.matrix;

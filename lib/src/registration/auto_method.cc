@@ -74,6 +74,7 @@ class AutoRegistration {
                                      problem_.source->viewpoint, problem_.threads);
     RegistrationResult start =
         AlignCoarse(problem_.initial, Stage::kCoarse, 0, 0, problem_.options->max_iterations);
+    start_capture_ = last_capture_;
     if (start.termination == Termination::kCancelled) return Finish(std::move(start));
     absl::StatusOr<RegistrationResult> fine =
         Refine(start.transform, Stage::kStart, 0, start.iterations);
@@ -194,6 +195,7 @@ class AutoRegistration {
                                           schedule.final_capture, target_.scales().extent);
     schedule.convergence = kCoarseConvergenceVoxels * target_voxels.voxel;
     schedule.max_iterations = max_iterations;
+    last_capture_ = {schedule.start_capture, schedule.final_capture};
     RegistrationResult result = AlignVoxelClouds(problem, target_voxels, source_voxels_, schedule);
     Stamp(result, stage, candidate);
     return result;
@@ -214,8 +216,7 @@ class AutoRegistration {
   }
 
   VerificationScore Verify(const Matrix4& transform) const {
-    return VerifyAlignment(target_, source_voxels_.points, source_voxels_.normals, transform,
-                           problem_.noise);
+    return VerifyAlignment(target_, source_voxels_, transform, problem_.noise_levels);
   }
 
   // One report for the global stage (iteration 0): the best candidate's pose.
@@ -242,6 +243,8 @@ class AutoRegistration {
       report_.verified = report_.verification.verified();
     }
     result.auto_report = std::move(report_);
+    result.scales.capture_start = start_capture_.first;
+    result.scales.capture_end = start_capture_.second;
     return result;
   }
 
@@ -253,6 +256,8 @@ class AutoRegistration {
   std::optional<KdTree> own_source_tree_;
   VoxelCloud source_voxels_;
   VerificationScore best_score_;  // of the result so far
+  // The capture range (first, last) of the last coarse alignment, and of the start's.
+  std::pair<double, double> last_capture_, start_capture_;
   AutoReport report_;
 };
 

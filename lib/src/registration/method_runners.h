@@ -15,6 +15,7 @@
 #include "mlsreg/registration/method.h"
 #include "mlsreg/registration/options.h"
 #include "mlsreg/registration/result.h"
+#include "mlsreg/registration/verification.h"
 
 namespace mlsreg {
 
@@ -30,7 +31,8 @@ struct RegistrationProblem {
   const KdTree* source_tree = nullptr;  // the source's index when Register built one already
   int threads = 1;                      // ExecutionOptions::threads
   double noise_d = 0.0;  // the clouds' estimated noise (the larger), units of d; 0: unknown
-  double noise = 0.0;    // their combined noise sigma (CombinedNoise), absolute; 0: unknown
+  double noise = 0.0;    // their combined noise sigma, absolute; 0: unknown
+  NoiseLevels noise_levels;  // each cloud's, absolute
 };
 
 namespace internal {

@@ -2,6 +2,8 @@
 // of the method table.
 #include "mlsreg/registration/registration.h"
 
+#include <cmath>
+
 #include "absl/strings/str_cat.h"
 #include "method_runners.h"
 #include "mlsreg/geometry/mls_radius.h"
@@ -130,7 +132,8 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
   RegistrationProblem problem{&target, &source, initial, &resolved, &callbacks, start};
   problem.source_tree = source_tree ? &*source_tree : nullptr;
   problem.noise_d = std::max(target.noise().sigma_d, source_noise_d);
-  problem.noise = CombinedNoise(target.noise().sigma_d * d, source_noise_d * d);
+  problem.noise_levels = {target.noise().sigma_d * d, source_noise_d * d};
+  problem.noise = std::hypot(problem.noise_levels.target, problem.noise_levels.source);
   problem.threads = std::max(1, execution.threads);
   absl::StatusOr<RegistrationResult> result = method.run(problem);
   if (!result.ok()) return result;
@@ -141,6 +144,13 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
     result->mls_radius_d = *resolved.mls.radius_d;
     result->mls_radius_auto = !options.mls.radius_d.has_value();
   }
+  const CloudScales& scales = target.scales();
+  result->scales.mean_spacing = d;
+  result->scales.median_spacing = scales.median_spacing;
+  result->scales.spacing_p90 = scales.spacing_p90;
+  result->scales.extent = scales.extent;
+  result->scales.working_voxel = scales.working_voxel;
+  if (reads_mls) result->scales.mls_radius = *resolved.mls.radius_d * d;
   if (options.verify && result->termination != Termination::kCancelled) {
     if (result->auto_report) {
       result->verification = result->auto_report->verification;
@@ -148,6 +158,7 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
       result->verification =
           VerifyPose(target, source, result->transform, source_noise_d, problem.threads);
     }
+    result->scales.verification_band = result->verification->inlier_distance;
   }
   result->timings.total = internal::Seconds(start);
   return result;

@@ -6,6 +6,7 @@
 
 #include "absl/strings/str_format.h"
 #include "mlsreg/geometry/noise_estimate.h"
+#include "mlsreg/geometry/weighted_covariance.h"
 #include "mlsreg/solvers/rigid_motion.h"
 
 namespace mlsreg {
@@ -16,17 +17,30 @@ using Matrix6 = Eigen::Matrix<double, 6, 6>;
 
 double Squared(double x) { return x * x; }
 
+// The RMS of a unit Gaussian cut at +-3.
+constexpr double kTruncatedGaussianRms = 0.9733;
 // A voxel this planar (1 - 3 surface variation) counts its spread as noise.
 constexpr double kFlatVoxelPlanarity = 0.9;
-// The plane of the nearest sample reaches as far along itself as its kReachNeighbors-th neighbour.
-constexpr std::size_t kReachNeighbors = 8;
+// The local surface is fitted to this many target samples; they span a plane when their middle
+// principal spread is at least this share of the largest.
+constexpr std::size_t kSurfaceNeighbors = 12;
+constexpr double kMinPlaneSpread = 0.05;
 
 // Where a moved sample meets the target's surface, and the noise expected there.
 struct SurfaceHit {
-  double distance = 0.0;     // to the surface (absolute)
-  double local_noise = 0.0;  // the spread of the target's samples around its voxel's plane
+  double distance = 0.0;  // to the surface (absolute)
+  // The local plane's normal and the signed distance across it (zero normal: no plane there).
+  Vec3 normal = Vec3::Zero();
+  double across = 0.0;
+  // The target's noise there: its spread about its voxel's plane where that is flat.
+  double local_noise = 0.0;
 };
 
+// The target's surface near `x`: its MLS projection where the patches reach; else the plane
+// through the centroid of its kSurfaceNeighbors samples nearest `x` (noise averages out over
+// them, where the nearest sample alone is biased toward `x`), with their normal when they span a
+// plane and their voxel's otherwise (on a LiDAR's far rings the nearest samples lie along one
+// ring, a line whose plane is anyone's guess).
 SurfaceHit HitSurface(const Target& target, const Vec3& x) {
   const VoxelCloud& voxels = target.voxel_cloud();
   const std::uint32_t voxel = voxels.tree->Nearest(x).index;
@@ -35,43 +49,154 @@ SurfaceHit HitSurface(const Target& target, const Vec3& x) {
   if (voxels.valid[voxel] && voxels.planarity[voxel] >= kFlatVoxelPlanarity) {
     hit.local_noise = voxels.spread[voxel];
   }
-  // The plane of the nearest sample, with its voxel's normal: a plane fitted over the voxel's
-  // neighbours, which a LiDAR's rings cannot tilt (a small neighbourhood there is one ring, a
-  // line whose plane is anyone's guess), or the sample's own where the voxel has none.
-  const Neighbor nearest = target.tree().Nearest(x);
-  const Vec3 offset = x - target.points()[nearest.index];
-  const SurfaceProperties& surface = target.surface();
+  if (const MlsPatches* patches = target.mls_patches(); patches != nullptr) {
+    const MlsProjection p = patches->Project(x, /*seed_far_queries=*/false);
+    if (p.status == ProjectionStatus::kOk) {
+      hit.normal = p.normal;
+      hit.across = (x - p.point).dot(p.normal);
+      hit.distance = (x - p.point).norm();
+      return hit;
+    }
+  }
+  std::uint32_t index[kSurfaceNeighbors];
+  double d2[kSurfaceNeighbors];
+  const std::size_t found = target.tree().Knn(x, kSurfaceNeighbors, index, d2);
+  WeightedCovariance covariance(x);
+  for (std::size_t j = 0; j < found; ++j) covariance.Add(target.points()[index[j]], 1.0);
+  LocalFrame frame;
+  const bool spans_plane =
+      covariance.Finalize(frame) && frame.eigenvalues[1] >= kMinPlaneSpread * frame.eigenvalues[2];
   Vec3 normal;
-  if (voxels.valid[voxel]) {
+  if (spans_plane) {
+    normal = frame.normal;
+  } else if (voxels.valid[voxel]) {
     normal = voxels.normals[voxel];
-  } else if (surface.valid[nearest.index]) {
-    normal = surface.normals[nearest.index];
   } else {
-    hit.distance = offset.norm();
+    hit.distance = std::sqrt(d2[0]);
     return hit;
   }
-  // Along the plane, a sample is only as close as the data allow: the plane of a sample says
-  // little about a point beyond its neighbourhood (kReachNeighbors of them: across a LiDAR's
-  // rings, not just along one).
-  std::uint32_t index[kReachNeighbors];
-  double d2[kReachNeighbors];
-  const std::size_t found =
-      target.tree().Knn(target.points()[nearest.index], kReachNeighbors, index, d2);
+  const Vec3 centre = spans_plane ? frame.mean : target.points()[index[0]];
+  // Along the plane, a sample is only as close as the data allow: the plane says little about a
+  // point beyond the neighbourhood it was fitted to.
+  const Vec3 offset = x - centre;
   const double reach = found > 1 ? std::sqrt(d2[found - 1]) : 0.0;
   const double along = (offset - offset.dot(normal) * normal).norm();
-  const double across = std::abs(offset.dot(normal));
+  hit.normal = normal;
+  hit.across = offset.dot(normal);
+  const double across = std::abs(hit.across);
   hit.distance = along <= reach ? across : std::hypot(across, along - reach);
   return hit;
 }
 
+// An inlier's residual across the target's plane where it lands.
+struct Pull {
+  Vec3 x;  // the moved sample
+  Vec3 normal;
+  double across;  // signed distance along `normal`
+};
+
+// How much of the inliers' residuals one small rigid motion would remove: the least-squares
+// point-to-plane step from the pose, and the share of the residuals' sum of squares it explains.
+// At a right pose the residuals are noise, and a rigid motion explains about 6 / inliers of them;
+// a pose turned or slid off the truth leaves residuals that one motion explains well.
+// The point-to-plane step (rotation about the centre in units of the lever, then translation);
+// a direction the planes barely constrain (along a road) gets a small ridge instead of an
+// arbitrary step.
+Vector6 SolveStep(const Matrix6& normal_matrix, const Vector6& gradient) {
+  const double ridge = 1e-6 * normal_matrix.trace();
+  return (normal_matrix + ridge * Matrix6::Identity()).ldlt().solve(-gradient);
+}
+
+void MeasurePull(std::span<const Pull> pulls, const Vec3& centre, double lever,
+                 VerificationScore& score) {
+  if (pulls.size() < 12) return;
+  Matrix6 normal_matrix = Matrix6::Zero();
+  Vector6 gradient = Vector6::Zero();
+  double sum_squared = 0.0;
+  for (const Pull& p : pulls) {
+    Vector6 j;
+    j.head<3>() = (p.x - centre).cross(p.normal) / lever;
+    j.tail<3>() = p.normal;
+    normal_matrix.noalias() += j * j.transpose();
+    gradient += j * p.across;
+    sum_squared += p.across * p.across;
+  }
+  if (!(sum_squared > 0.0)) return;
+  const Vector6 step = SolveStep(normal_matrix, gradient);
+  score.pull_fraction = std::clamp(-gradient.dot(step) / sum_squared, 0.0, 1.0);
+  score.pull_rotation_deg = step.head<3>().norm() / lever * 180.0 / M_PI;
+  score.pull_translation = step.tail<3>().norm();
+  double displacement_squared = 0.0;
+  for (const Pull& p : pulls) {
+    displacement_squared +=
+        ((step.head<3>() / lever).cross(p.x - centre) + step.tail<3>()).squaredNorm();
+  }
+  score.pull_displacement = std::sqrt(displacement_squared / pulls.size());
+}
+
+// Where the data move the pose: up to kSettleSteps point-to-plane steps on the target's
+// surface from it, each over the samples inside their band at the moved pose. Returns the RMS
+// distance the samples in `moved` (the inliers at the pose) travel. A right pose moves by its
+// registration precision; a pose turned or slid off the truth moves back toward it.
+constexpr int kSettleSteps = 6;
+template <typename BandOf>
+double SettleDisplacement(const Target& target, std::span<const Vec3> points,
+                          std::span<const std::uint8_t> state, const RigidTransform& pose,
+                          const Vec3& centre, double lever, double coverage,
+                          const BandOf& band_of) {
+  const VoxelCloud& voxels = target.voxel_cloud();
+  RigidTransform current = pose;
+  for (int step_index = 0; step_index < kSettleSteps; ++step_index) {
+    Matrix6 normal_matrix = Matrix6::Zero();
+    Vector6 gradient = Vector6::Zero();
+    int used = 0;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const Vec3 x = current * points[i];
+      if (voxels.tree->Nearest(x).distance_squared > coverage * coverage) continue;
+      const SurfaceHit hit = HitSurface(target, x);
+      if (hit.distance > band_of(hit) || !(hit.normal.squaredNorm() > 0.0)) continue;
+      Vector6 j;
+      j.head<3>() = (x - centre).cross(hit.normal) / lever;
+      j.tail<3>() = hit.normal;
+      normal_matrix.noalias() += j * j.transpose();
+      gradient += j * hit.across;
+      ++used;
+    }
+    if (used < 12) break;
+    const Vector6 step = SolveStep(normal_matrix, gradient);
+    const Vec3 omega = step.head<3>() / lever;
+    RigidTransform increment = RigidTransform::Identity();
+    increment.linear() = ExpSo3(omega);
+    increment.translation() = centre - increment.linear() * centre + step.tail<3>();
+    current = increment * current;
+    if (step.norm() < 1e-9 * lever) break;
+  }
+  double sum = 0.0;
+  int count = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (state[i] != 2) continue;
+    sum += (current * points[i] - pose * points[i]).squaredNorm();
+    ++count;
+  }
+  return count > 0 ? std::sqrt(sum / count) : 0.0;
+}
+
+// `floor` is the smallest band (one median spacing): a pose the data would move by less than
+// that is never pulled, however significant the pull (clean data pull every imprecise pose).
 Verdict Judge(const VerificationScore& s, bool unconstrained, const VerificationOptions& o,
-              double rms_per_band) {
+              double rms_per_band, double floor) {
   if (s.covered < o.min_covered_samples) return Verdict::kTooLittleOverlap;
   if (s.inlier_fraction < o.min_inlier_fraction ||
       s.explained_fraction < o.min_explained_fraction) {
     return Verdict::kLowAgreement;
   }
   if (rms_per_band > o.max_rms_per_band) return Verdict::kDiffuseResiduals;
+  const double settle_bound =
+      std::max(o.max_settle_sigmas * s.inlier_distance / o.band_per_noise, floor);
+  if (s.settle_displacement > settle_bound ||
+      (s.pull_fraction > o.max_pull_fraction && s.settle_displacement > floor)) {
+    return Verdict::kPulled;
+  }
   if (unconstrained) return Verdict::kUnconstrained;
   if (s.worst_direction_fraction < o.min_direction_ratio * s.inlier_fraction) {
     return Verdict::kDirectionDisagrees;
@@ -90,6 +215,7 @@ const EnumNames& VerdictNames() {
       {static_cast<int>(Verdict::kDirectionDisagrees), "direction_disagrees",
        "DIRECTION_DISAGREES"},
       {static_cast<int>(Verdict::kUnconstrained), "unconstrained", "UNCONSTRAINED"},
+      {static_cast<int>(Verdict::kPulled), "pulled", "PULLED"},
   };
   static constexpr EnumNames kNames{"Verdict", "VERDICT_", kValues};
   return kNames;
@@ -105,26 +231,36 @@ std::string VerificationScore::WorstDirectionText() const {
                          axis.x(), axis.y(), axis.z());
 }
 
-double CombinedNoise(double target_sigma, double source_sigma) {
-  return std::hypot(target_sigma, source_sigma);
-}
-
-VerificationScore VerifyAlignment(const Target& target, std::span<const Vec3> points,
-                                  std::span<const Vec3> normals, const Matrix4& transform,
-                                  double noise, const VerificationOptions& options) {
+VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& samples,
+                                  const Matrix4& transform, const NoiseLevels& noise,
+                                  const VerificationOptions& options) {
+  const std::vector<Vec3>& points = samples.points;
+  const std::vector<Vec3>& normals = samples.normals;
   const double d = target.sampling_distance();
   const VoxelCloud& voxels = target.voxel_cloud();
   const double floor = options.min_band_spacings * target.scales().median_spacing;
-  const double band = std::max(options.band_per_noise * noise, floor);
+  VerificationScore score;
+  score.noise = std::hypot(noise.target, noise.source);
+  const double band = std::max(options.band_per_noise * score.noise, floor);
   const double coverage = options.coverage_voxels * voxels.voxel + band;
   const RigidTransform pose(Orthonormalize(transform));
-  VerificationScore score;
   score.inlier_distance = band;
   score.inlier_distance_d = band / d;
   score.samples = static_cast<int>(points.size());
 
+  // The band where a sample lands: the residual expected there from the target's noise (its own
+  // spread there when larger: far from a LiDAR) and the source's. The band is generous on
+  // purpose: it separates the overlap from chance; the settling below judges how precisely the
+  // pose sits.
+  const auto band_of = [&](const SurfaceHit& hit) {
+    const double sigma = std::hypot(std::max(noise.target, hit.local_noise), noise.source);
+    return std::max(options.band_per_noise * sigma, floor);
+  };
+
   // Pass 1: coverage and agreement, and the covered samples' centre.
   std::vector<std::uint8_t> state(points.size(), 0);  // 1 covered, 2 inlier
+  std::vector<Pull> pulls;  // the inliers' residuals across the target's local planes
+  pulls.reserve(points.size());
   double sum_squared = 0.0, sum_normalised = 0.0, sum_band = 0.0;
   Vec3 centre = Vec3::Zero();
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -134,16 +270,14 @@ VerificationScore VerifyAlignment(const Target& target, std::span<const Vec3> po
     ++score.covered;
     centre += x;
     const SurfaceHit hit = HitSurface(target, x);
-    // The band where the sample lands: the clouds' noise, or the target's own spread there when
-    // larger (far from a LiDAR, in clutter), counted for both clouds.
-    const double sigma = std::max(noise, std::sqrt(2.0) * hit.local_noise);
-    const double local_band = std::max(options.band_per_noise * sigma, floor);
+    const double local_band = band_of(hit);
     if (hit.distance > local_band) continue;
     state[i] = 2;
     ++score.inliers;
     sum_squared += hit.distance * hit.distance;
     sum_normalised += Squared(hit.distance / local_band);
     sum_band += local_band;
+    if (hit.normal.squaredNorm() > 0.0) pulls.push_back({x, hit.normal, hit.across});
   }
   if (score.covered > 0) {
     score.inlier_fraction = static_cast<double>(score.inliers) / score.covered;
@@ -155,6 +289,7 @@ VerificationScore VerifyAlignment(const Target& target, std::span<const Vec3> po
   if (score.inliers > 0) {
     score.rmse_d = std::sqrt(sum_squared / score.inliers) / d;
     rms_per_band = std::sqrt(sum_normalised / score.inliers);
+    score.residual_scale = rms_per_band * options.band_per_noise / kTruncatedGaussianRms;
     score.inlier_distance = sum_band / score.inliers;  // the mean band of the inliers
     score.inlier_distance_d = score.inlier_distance / d;
   }
@@ -165,6 +300,11 @@ VerificationScore VerifyAlignment(const Target& target, std::span<const Vec3> po
     if (state[i]) radius_squared += (pose * points[i] - centre).squaredNorm();
   }
   const double lever = score.covered > 0 ? std::sqrt(radius_squared / score.covered) : 1.0;
+  MeasurePull(pulls, centre, lever, score);
+  if (score.inliers > 0) {
+    score.settle_displacement =
+        SettleDisplacement(target, points, state, pose, centre, lever, coverage, band_of);
+  }
   std::vector<Vector6> jacobians(points.size(), Vector6::Zero());
   Matrix6 information = Matrix6::Zero();
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -228,7 +368,7 @@ VerificationScore VerifyAlignment(const Target& target, std::span<const Vec3> po
     score.worst_direction_fraction = worst->fraction;
     score.worst_direction_strength = worst->strength;
   }
-  score.verdict = Judge(score, unconstrained, options, rms_per_band);
+  score.verdict = Judge(score, unconstrained, options, rms_per_band, floor);
   return score;
 }
 
@@ -237,8 +377,8 @@ VerificationScore VerifyPose(const Target& target, const PointCloud& source,
   const double d = target.sampling_distance();
   const VoxelCloud samples =
       BuildVoxelCloud(source.points, target.voxel_cloud().voxel, source.viewpoint, threads);
-  return VerifyAlignment(target, samples.points, samples.normals, transform,
-                         CombinedNoise(target.noise().sigma_d * d, source_noise_d * d));
+  return VerifyAlignment(target, samples, transform,
+                         {target.noise().sigma_d * d, source_noise_d * d});
 }
 
 VerificationScore VerifyPose(const Target& target, const PointCloud& source,

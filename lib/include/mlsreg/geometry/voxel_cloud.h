@@ -30,6 +30,7 @@ struct VoxelCloud {
   // with range on a LiDAR scan), noise plus shape elsewhere. Voxels of fewer than 3 samples take
   // the median of their neighbours'.
   std::vector<float> spread;
+  std::vector<std::uint32_t> counts;  // samples in each voxel
   bool oriented = false;
   std::unique_ptr<KdTree> tree;  // over `points`
 

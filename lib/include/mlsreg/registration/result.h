@@ -95,6 +95,21 @@ struct AutoReport {
   AutoStageTimings timings;
 };
 
+// The lengths a registration worked at, all chosen from the data (absolute units, those of the
+// clouds): what the user would otherwise have had to pick.
+struct ScaleReport {
+  double mean_spacing = 0.0;    // the target's d (paper Eq. 11): the unit of every *_d field
+  double median_spacing = 0.0;  // the target's median nearest-neighbour spacing
+  double spacing_p90 = 0.0;     // and its 90th percentile (the sparse regions)
+  double extent = 0.0;          // the target's robust size
+  double working_voxel = 0.0;   // coarse alignment, global features and verification samples
+  // Method auto: the capture range of the coarse alignment from the start, first and last.
+  double capture_start = 0.0;
+  double capture_end = 0.0;
+  double mls_radius = 0.0;         // methods with MLS correspondences
+  double verification_band = 0.0;  // the verification's mean inlier band
+};
+
 struct RegistrationResult {
   Matrix4 transform = Matrix4::Identity();  // maps source points into the target frame
   bool converged = false;
@@ -115,6 +130,7 @@ struct RegistrationResult {
   // Whether the result can be trusted (RegistrationOptions::verify; any method). Unset when not
   // asked for or cancelled.
   std::optional<VerificationScore> verification;
+  ScaleReport scales;
 };
 
 struct RegistrationCallbacks {

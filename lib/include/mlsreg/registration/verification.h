@@ -6,18 +6,25 @@
 //   - covered when the target has data near it (a voxel of the target within a few working
 //     voxels): only covered samples can confirm or contradict the pose, the rest lie outside the
 //     overlap;
-//   - an inlier when it also lies within the band of the target's surface (its MLS projection,
-//     or the plane of its nearest sample where no MLS patch reaches). The band is 3 sigma of the
-//     noise expected where the sample lands: the clouds' measured noise, or the spread of the
-//     target's samples about their voxel's plane there when larger (a LiDAR's noise grows with
-//     range), and at least one median spacing of the target.
+//   - an inlier when it also lies within the band of the target's surface: its MLS surface
+//     (the target's MLS patches: de-noised, unbiased on curved surfaces) where the patches reach,
+//     else the plane through its 12 nearest samples. The band is 3 sigma of the residual expected
+//     where the sample lands: the target's measured noise, or the spread of its samples about
+//     their voxel's plane there when larger (a LiDAR's noise grows with range), combined with the
+//     source's; at least one median spacing of the target. It is generous on purpose: it tells
+//     the overlap from chance, the pull below tells how precisely the pose sits.
 // A right pose explains most of the overlap, its inliers' residuals concentrate inside the band,
-// and it explains the overlap equally in every direction of motion. The last test is what
-// catches a pose slid along a road or a corridor: the ground and the facades still agree, but the
-// few samples that constrain the slide (poles, cars, building ends) do not. Each of the six
+// and it explains the overlap equally in every direction of motion. The direction test catches a
+// pose slid along a road or a corridor: the ground and the facades still agree, but the few
+// samples that constrain the slide (poles, cars, building ends) do not. Each of the six
 // directions of rigid motion (eigen-directions of the point-to-plane information of the covered
 // samples) is judged by the samples whose residual it moves most; a direction the samples barely
 // constrain cannot be verified at all.
+// Last, the pull: a right pose is where the data put it. One point-to-plane step from it would
+// explain only noise (about 6 / inliers of the residuals' sum of squares), and settling (a few
+// such steps on the target's surface) moves the inliers by its registration precision, a
+// fraction of the noise. A pose turned or slid off the truth by less than the band is pulled
+// back toward it: one step explains much of its residuals, and it settles far away.
 #pragma once
 
 #include <span>
@@ -48,6 +55,14 @@ struct VerificationOptions {
   // ...and a direction whose information per covered sample is below this (as if fewer than 1 %
   // of the samples faced it squarely) is unconstrained: the pose cannot be verified along it.
   double min_direction_strength = 0.01;
+  // The pose is pulled when one rigid motion would remove more than this share of the inliers'
+  // squared residuals (a right pose's residuals are noise: about 6 / inliers of them).
+  double max_pull_fraction = 0.1;
+  // ...or when, settling where the data put it, it moves the inliers by more than this many
+  // noise sigmas (the band's): a right pose moves by its registration precision, a fraction of
+  // the noise. A pose that settles within one median spacing (min_band_spacings) is never
+  // pulled: on clean data every imprecise pose is pulled significantly, but not by much.
+  double max_settle_sigmas = 1.0;
 };
 
 enum class Verdict {
@@ -57,6 +72,7 @@ enum class Verdict {
   kDiffuseResiduals,    // the inliers' residuals spread over the band (chance overlap)
   kDirectionDisagrees,  // the samples that constrain one direction of motion disagree
   kUnconstrained,       // the data do not constrain one direction of motion
+  kPulled,              // one small rigid motion would remove much of the residuals
 };
 std::string_view VerdictName(Verdict verdict);  // "verified", "too_little_overlap", ...
 const EnumNames& VerdictNames();                // wire enum "Verdict"
@@ -70,6 +86,20 @@ struct VerificationScore {
   double rmse_d = 0.0;              // RMSE of the inliers' distances, units of d
   double inlier_distance_d = 0.0;   // the band (the inliers' mean where it varies), units of d
   double inlier_distance = 0.0;     // the same, absolute
+  double noise = 0.0;               // the clouds' combined noise sigma, absolute
+  // The inliers' residuals against the noise expected where each lands: their RMS in units of
+  // that sigma over what a right pose gives (0.973: a unit Gaussian cut at the 3-sigma band).
+  // About 1 for a right pose; a wrong pose's residuals are wider than the noise.
+  double residual_scale = 0.0;
+  // The pull: the share of the inliers' squared residuals that one rigid motion would remove, and
+  // that motion (the point-to-plane step from the pose).
+  double pull_fraction = 0.0;
+  double pull_rotation_deg = 0.0;
+  double pull_translation = 0.0;
+  double pull_displacement = 0.0;  // the RMS distance that motion moves the inliers by
+  // The RMS distance the inliers travel when the pose settles where the data put it (a few
+  // point-to-plane steps on the target's surface).
+  double settle_displacement = 0.0;
   // The direction whose constraining samples agree least: its inlier fraction, how many
   // samples constrain it, and the direction (rotation axis scaled by its share, translation).
   double worst_direction_fraction = 0.0;
@@ -85,15 +115,19 @@ struct VerificationScore {
   std::string WorstDirectionText() const;
 };
 
-// The noise sigma (absolute) the band is built from: both clouds' estimates combined.
-double CombinedNoise(double target_sigma, double source_sigma);
+// The clouds' estimated noise sigmas (absolute units).
+struct NoiseLevels {
+  double target = 0.0;
+  double source = 0.0;
+};
 
-// Scores `transform` (source to target) by source samples `points` with unit `normals` (a zero
-// normal: the sample takes no part in the directional test). `noise` is CombinedNoise of the two
-// clouds. Thread-safe.
-VerificationScore VerifyAlignment(const Target& target, std::span<const Vec3> points,
-                                  std::span<const Vec3> normals, const Matrix4& transform,
-                                  double noise, const VerificationOptions& options = {});
+// Scores `transform` (source to target) by the source's voxel cloud `samples` (a sample without
+// a normal takes no part in the directional test). A sample's expected residual combines the
+// target's noise where it lands (its estimate, or the local spread there when larger) with the
+// source's noise averaged over the sample's voxel. Thread-safe.
+VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& samples,
+                                  const Matrix4& transform, const NoiseLevels& noise,
+                                  const VerificationOptions& options = {});
 
 // Verifies `transform` (source to target) as Register verifies a result: the source's noise is
 // estimated and its voxel cloud at the target's working voxel scored.
