@@ -95,20 +95,20 @@ def run_json(args, tmp):
     return json.load(open(path))
 
 
+def score_row(pair, kind, v, j):
+    """One study row from a verification score `v` (an error, if any, from the run's JSON `j`)."""
+    return {"id": pair["id"], "kind": kind, "verified": bool(v.get("verified")),
+            "verdict": v.get("verdict", j.get("error", "")),
+            **{k: v.get(k, "") for k in ("inlier_fraction", "worst_direction_fraction",
+                                         "residual_scale", "pull_fraction", "pull_displacement",
+                                         "settle_displacement", "inlier_distance", "noise")}}
+
+
 def verify(exe, pair, kind, pose):
     with tempfile.TemporaryDirectory() as tmp:
         j = run_json([exe, "verify", "--source", pair["source"], "--target", pair["target"],
                       "--transform", " ".join("%.12g" % v for v in pose.ravel())], tmp)
-    return {"id": pair["id"], "kind": kind, "verified": bool(j.get("verified")),
-            "verdict": j.get("verdict", j.get("error", "")),
-            "overlap_fraction": j.get("inlier_fraction", ""),
-            "worst_direction_fraction": j.get("worst_direction_fraction", ""),
-            "residual_scale": j.get("residual_scale", ""),
-            "pull_fraction": j.get("pull_fraction", ""),
-            "pull_displacement": j.get("pull_displacement", ""),
-            "settle_displacement": j.get("settle_displacement", ""),
-            "inlier_distance": j.get("inlier_distance", ""),
-            "combined_noise": j.get("noise", "")}
+    return score_row(pair, kind, j, j)
 
 
 def register(exe, pair):
@@ -116,16 +116,7 @@ def register(exe, pair):
         j = run_json([exe, "register", "--quiet", "--source", pair["source"], "--target",
                       pair["target"]], tmp)
     v = j.get("verification", {})
-    return {"id": pair["id"], "kind": "mismatched", "verified": bool(v.get("verified")),
-            "verdict": v.get("verdict", j.get("error", "")),
-            "overlap_fraction": v.get("inlier_fraction", ""),
-            "worst_direction_fraction": v.get("worst_direction_fraction", ""),
-            "residual_scale": v.get("residual_scale", ""),
-            "pull_fraction": v.get("pull_fraction", ""),
-            "pull_displacement": v.get("pull_displacement", ""),
-            "settle_displacement": v.get("settle_displacement", ""),
-            "inlier_distance": v.get("inlier_distance", ""),
-            "combined_noise": v.get("noise", "")}
+    return score_row(pair, "mismatched", v, j)
 
 
 def refine(exe, pair):
