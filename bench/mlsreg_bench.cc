@@ -74,7 +74,8 @@ BENCHMARK(BM_MlsProjection)->Arg(5)->Arg(8)->Unit(benchmark::kMillisecond);
 MlsPatches PatchesAt(const BunnyPair& p, double radius_d) {
   MlsOptions options;
   options.radius = radius_d * p.target->sampling_distance();
-  return *MlsPatches::Build(p.target->points(), p.target->tree(), options, nullptr, 1);
+  return *MlsPatches::Build(p.target->points(), p.target->tree(), options, std::nullopt,
+                            PatchFitting::kAll, 1);
 }
 
 void BM_MlsPatchProjection(benchmark::State& state) {
@@ -106,14 +107,15 @@ void BM_MlsPatchProjectionWarm(benchmark::State& state) {
 }
 BENCHMARK(BM_MlsPatchProjectionWarm)->Arg(5)->Arg(8)->Unit(benchmark::kMicrosecond);
 
-// Argument 0: the target build without MLS patches, 1: with them and the global features (the
-// default), 2: with the patches but without the features. Counter bytes_per_point:
-// Target::MemoryBytes() / points.
+// Argument 0: every part on first use (the library's default: a one-shot registration), 1: every
+// part with the target (surface, patch fits, features), 2: as a served target (surface and
+// features with the target, patch fits on first use). Counter bytes_per_point:
+// Target::MemoryBytes() / points right after the build.
 void BM_TargetBuild(benchmark::State& state) {
   const BunnyPair& p = Pair();
   TargetOptions options;
-  options.build_mls_patches = state.range(0) != 0;
-  options.build_global_features = state.range(0) != 2;
+  if (state.range(0) >= 1) options = TargetOptions::AllWithTarget();
+  if (state.range(0) == 2) options.mls_patch_fits = PartBuild::kOnFirstUse;
   std::size_t bytes = 0;
   for (auto _ : state) {
     auto target = Target::Build(p.target->cloud(), options);
@@ -247,7 +249,7 @@ BENCHMARK(BM_MlsSicpThreads)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->Use
 // The target build with 1 or 2 threads (argument).
 void BM_TargetBuildThreads(benchmark::State& state) {
   const BunnyPair& p = Pair();
-  TargetOptions options;
+  TargetOptions options = TargetOptions::AllWithTarget();
   options.threads = static_cast<int>(state.range(0));
   for (auto _ : state) benchmark::DoNotOptimize(Target::Build(p.target->cloud(), options));
   state.SetItemsProcessed(state.iterations() * p.target->cloud().size());

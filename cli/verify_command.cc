@@ -34,7 +34,6 @@ int RunVerify(const VerifyArgs& args) {
   if (!target_cloud.ok()) return Fail(target_cloud.status());
   TargetOptions options;
   options.threads = args.threads;
-  options.build_global_features = false;
   auto target = Target::Build(*std::move(target_cloud), options);
   if (!target.ok()) return Fail(target.status());
   const VerificationScore score = VerifyPose(**target, *source, *transform, args.threads);

@@ -136,7 +136,7 @@ class TargetCache {
   const std::unique_ptr<TargetStore> store_;
   const int build_threads_;
   TargetOptions BuildOptions() const {
-    TargetOptions options;
+    TargetOptions options = TargetOptions::ForServing();
     options.threads = build_threads_;
     return options;
   }

@@ -59,7 +59,7 @@ def test_a_callback_returning_false_cancels_the_served_registration(client, bun0
     with pytest.raises(mlsreg.Error) as raised:
         client.register("bun045", bun000, method="mls-sicp", init=near_start, callback=callback,
                         max_iterations=100000, convergence_d=0, stall_d=0,
-                        stall_noise_fraction=0)
+                        stall_noise_fraction=0, stall_standard_errors=0)
     assert raised.value.code == "CANCELLED"
     assert seen and seen[0] == 1
     # The server keeps serving.

@@ -157,6 +157,7 @@ TEST_F(RegistrationServiceTest, BadRequestsNameTheFieldWhileAGoodOneRuns) {
   long_enough.coarse_convergence_d = 0.0;
   long_enough.stall_d = 0.0;
   long_enough.stall_noise_fraction = 0.0;
+  long_enough.stall_standard_errors = 0.0;
   RegisterCall good(client_, RegisterMessages("bun045", Bun000(), long_enough,
                                               PerturbedStart(5, 5, 4), Bun000ToBun045()));
   ASSERT_TRUE(good.WaitForAccepted());

@@ -197,6 +197,7 @@ RegistrationOptions EndlessOptions() {
   options.coarse_convergence_d = 0.0;
   options.stall_d = 0.0;
   options.stall_noise_fraction = 0.0;
+  options.stall_standard_errors = 0.0;
   return options;
 }
 

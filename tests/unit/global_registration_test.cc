@@ -79,15 +79,25 @@ TEST(FeatureCloudTest, LargeCloudsGetLargerVoxelsAndAtMostTheCapOfSamples) {
   }
 }
 
-TEST(FeatureCloudTest, TheTargetCachesItsFeaturesAndCountsTheirBytes) {
+TEST(FeatureCloudTest, TheTargetMakesItsFeaturesOnFirstUseAndCountsTheirBytes) {
   const Target& target = *Bunny().target;
-  ASSERT_NE(target.features(), nullptr);
-  EXPECT_GT(target.features()->size(), 500u);
-  TargetOptions without;
-  without.build_global_features = false;
-  auto plain = Target::Build(target.cloud(), without).value();
-  EXPECT_EQ(plain->features(), nullptr);
-  EXPECT_EQ(target.MemoryBytes() - plain->MemoryBytes(), target.features()->MemoryBytes());
+  auto lazy = Target::Build(target.cloud()).value();
+  const std::size_t before = lazy->MemoryBytes();
+  const FeatureCloud* features = lazy->features();
+  ASSERT_NE(features, nullptr);
+  EXPECT_GT(features->size(), 500u);
+  EXPECT_EQ(lazy->features(), features);  // made once
+  EXPECT_EQ(lazy->MemoryBytes() - before, features->MemoryBytes());
+  // The same features as a target that made them at build.
+  auto eager = Target::Build(target.cloud(), TargetOptions::AllWithTarget()).value();
+  ASSERT_EQ(eager->features()->size(), features->size());
+  EXPECT_EQ(eager->features()->points, features->points);
+  EXPECT_EQ(eager->features()->normals, features->normals);
+  // A stop requested while they are made leaves none, and the next caller makes them.
+  auto stopped = Target::Build(target.cloud()).value();
+  EXPECT_EQ(stopped->features([] { return true; }), nullptr);
+  ASSERT_NE(stopped->features(), nullptr);
+  EXPECT_EQ(stopped->features()->points, features->points);
 }
 
 // A half-turned copy of the bunny's target scan, registered to the scan it came from: the best

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <random>
+#include <thread>
 
 #include "mlsreg/correspondences/correspondence_finders.h"
 #include "mlsreg/geometry/kd_tree.h"
@@ -18,7 +19,7 @@ namespace {
 using testing::SamplePlaneGrid;
 using testing::SampleSphere;
 
-MlsOptions OptionsWithRadius(double radius) {
+MlsOptions PatchOptionsWithRadius(double radius) {
   MlsOptions o;
   o.radius = radius;
   return o;
@@ -27,7 +28,8 @@ MlsOptions OptionsWithRadius(double radius) {
 MlsPatches BuildPatches(const PointCloud& cloud, const KdTree& tree, double radius,
                         int threads = 1) {
   absl::StatusOr<MlsPatches> patches =
-      MlsPatches::Build(cloud.points, tree, OptionsWithRadius(radius), nullptr, threads);
+      MlsPatches::Build(cloud.points, tree, PatchOptionsWithRadius(radius), std::nullopt,
+                        PatchFitting::kAll, threads);
   EXPECT_TRUE(patches.ok()) << patches.status();
   return *std::move(patches);
 }
@@ -63,7 +65,7 @@ TEST(MlsPatchesTest, ProjectsOntoSphereAsAccuratelyAsTheExactProjection) {
   const KdTree tree(sphere.points);
   const double d = SamplingDistance(sphere.points, tree);
   const MlsPatches patches = BuildPatches(sphere, tree, 5.0 * d);
-  const MlsProjector exact(sphere.points, tree, OptionsWithRadius(5.0 * d));
+  const MlsProjector exact(sphere.points, tree, PatchOptionsWithRadius(5.0 * d));
   MlsProjector::Workspace ws;
   std::mt19937_64 rng(13);
   std::normal_distribution<double> g(0.0, 1.0);
@@ -120,7 +122,7 @@ TEST(MlsPatchesTest, DenoisesAlmostAsStronglyAsTheExactProjection) {
   const PointCloud noisy = SamplePlaneGrid(1.0, spacing, 0.005, 19, /*noise=*/0.8 * spacing);
   const KdTree tree(noisy.points);
   const double d = SamplingDistance(noisy.points, tree);
-  const MlsProjector exact(noisy.points, tree, OptionsWithRadius(8.0 * d));
+  const MlsProjector exact(noisy.points, tree, PatchOptionsWithRadius(8.0 * d));
   const MlsPatches patches = BuildPatches(noisy, tree, 8.0 * d);
   MlsProjector::Workspace ws;
   double sample_sq = 0.0, exact_sq = 0.0, patches_sq = 0.0;
@@ -177,12 +179,55 @@ TEST(MlsPatchesTest, SameForAnyThreadCount) {
   }
 }
 
+// Patches fitted on first use are the patches fitted with the anchors: the same projections,
+// bit for bit, from two threads racing to fit the same patches, and only the patches near the
+// queries get fitted.
+TEST(MlsPatchesTest, FittedOnFirstUseTheyProjectAsThoseFittedWithTheAnchors) {
+  const PointCloud sphere = SampleSphere(8000, 1.0, -0.5, 33);
+  const KdTree tree(sphere.points);
+  const double d = SamplingDistance(sphere.points, tree);
+  const MlsPatches all = BuildPatches(sphere, tree, 5.0 * d);
+  const absl::StatusOr<MlsPatches> lazy =
+      MlsPatches::Build(sphere.points, tree, PatchOptionsWithRadius(5.0 * d), std::nullopt,
+                        PatchFitting::kOnFirstUse, 1);
+  ASSERT_TRUE(lazy.ok()) << lazy.status();
+  ASSERT_EQ(lazy->size(), all.size());
+  EXPECT_EQ(lazy->fitted(), 0u);
+  EXPECT_EQ(lazy->MemoryBytes(), all.MemoryBytes());  // the storage is there from the start
+  // Queries on one cap of the sphere (z > 0.8), from two threads at once.
+  std::vector<Vec3> queries;
+  std::mt19937_64 rng(39);
+  std::normal_distribution<double> g(0.0, 1.0);
+  while (queries.size() < 400) {
+    const Vec3 dir = Vec3(g(rng), g(rng), g(rng)).normalized();
+    if (dir.z() > 0.8) queries.push_back(dir * (1.0 + d * g(rng)));
+  }
+  std::vector<MlsProjection> first(queries.size()), second(queries.size());
+  std::thread other([&] {
+    for (std::size_t i = 0; i < queries.size(); ++i) second[i] = lazy->Project(queries[i], true);
+  });
+  for (std::size_t i = 0; i < queries.size(); ++i) first[i] = lazy->Project(queries[i], true);
+  other.join();
+  for (std::size_t i = 0; i < queries.size(); ++i) {
+    const MlsProjection expected = all.Project(queries[i], true);
+    ASSERT_EQ(first[i].status, expected.status);
+    EXPECT_EQ(first[i].point, expected.point);
+    EXPECT_EQ(first[i].normal, expected.normal);
+    EXPECT_EQ(second[i].point, expected.point);
+    EXPECT_EQ(second[i].normal, expected.normal);
+  }
+  // The cap is a tenth of the sphere: most patches were never needed.
+  EXPECT_GT(lazy->fitted(), 0u);
+  EXPECT_LT(lazy->fitted(), all.size() / 4);
+}
+
 TEST(MlsPatchesTest, BuildIsCancellable) {
   const PointCloud sphere = SampleSphere(8000, 1.0, -0.5, 41);
   const KdTree tree(sphere.points);
   const double d = SamplingDistance(sphere.points, tree);
-  const absl::StatusOr<MlsPatches> patches = MlsPatches::Build(
-      sphere.points, tree, OptionsWithRadius(5.0 * d), nullptr, 1, [] { return true; });
+  const absl::StatusOr<MlsPatches> patches =
+      MlsPatches::Build(sphere.points, tree, PatchOptionsWithRadius(5.0 * d), std::nullopt,
+                        PatchFitting::kAll, 1, [] { return true; });
   EXPECT_EQ(patches.status().code(), absl::StatusCode::kCancelled);
 }
 
@@ -197,7 +242,7 @@ TEST(MlsPatchesTest, TargetBuildsPatchesAtItsAutomaticRadius) {
   EXPECT_GE((*target)->MemoryBytes(), patches->MemoryBytes() + cloud.size() * sizeof(Vec3));
 
   // A finder at that radius uses them; at another radius it builds its own; exact uses none.
-  MlsOptions options = OptionsWithRadius(patches->radius());
+  MlsOptions options = PatchOptionsWithRadius(patches->radius());
   std::vector<Vec3> queries(cloud.points.begin(), cloud.points.begin() + 50);
   std::vector<Correspondence> out(queries.size());
   MlsCorrespondenceFinder same(**target, options, true);

@@ -193,6 +193,7 @@ TEST(RegistrationTest, ObserverSeesEveryIterationAndCancelStopsWithinOne) {
   options.convergence_d = 0.0;  // never converge: run until cancelled
   options.stall_d = 0.0;
   options.stall_noise_fraction = 0.0;
+  options.stall_standard_errors = 0.0;
   std::vector<int> seen;
   RegistrationCallbacks callbacks;
   callbacks.on_iteration = [&](const IterationReport& r) {

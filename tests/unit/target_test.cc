@@ -8,6 +8,7 @@
 
 #include "gtest/gtest.h"
 #include "mlsreg/io/io.h"
+#include "mlsreg/registration/registration.h"
 #include "support/synthetic.h"
 
 namespace mlsreg {
@@ -35,15 +36,41 @@ TEST(TargetTest, WithMovedPointsRebuildsGeometryButKeepsSurfaceVariation) {
             absl::StatusCode::kInvalidArgument);
 }
 
+// A target that makes its parts on first use registers exactly as one that made them all at
+// build, with every method that uses them (MLS patches, surface, features), and holds less
+// until they are asked for.
+TEST(TargetTest, PartsMadeOnFirstUseGiveTheSameRegistrations) {
+  auto target_cloud = ReadPointCloud(MLSREG_SOURCE_DIR "/data/bunny/bun045.ply");
+  auto source = ReadPointCloud(MLSREG_SOURCE_DIR "/data/bunny/bun000.ply");
+  ASSERT_TRUE(target_cloud.ok() && source.ok());
+  auto eager = Target::Build(*target_cloud, TargetOptions::AllWithTarget());
+  auto lazy = Target::Build(*target_cloud);
+  ASSERT_TRUE(eager.ok() && lazy.ok());
+  EXPECT_LT((*lazy)->MemoryBytes(), (*eager)->MemoryBytes());
+  EXPECT_EQ((*lazy)->mls_patches()->fitted(), 0u);
+  for (Method method : {Method::kAuto, Method::kMlsSicp, Method::kCpSicp, Method::kGicp}) {
+    RegistrationOptions options;
+    options.method = method;
+    options.num_samples = 500;
+    auto a = Register(**eager, *source, Matrix4::Identity(), options);
+    auto b = Register(**lazy, *source, Matrix4::Identity(), options);
+    ASSERT_TRUE(a.ok() && b.ok()) << MethodName(method);
+    EXPECT_EQ(a->transform, b->transform) << MethodName(method);
+    EXPECT_EQ(a->iterations, b->iterations) << MethodName(method);
+  }
+  EXPECT_GT((*lazy)->mls_patches()->fitted(), 0u);
+  EXPECT_LT((*lazy)->mls_patches()->fitted(), (*lazy)->mls_patches()->size());
+}
+
 // docs/operations.md sizes the cache with the bytes per point a cached target holds. This is
 // the measurement: the bundled 40k-point bun045 scan built with the options a server caches
-// targets with (kd-tree, normals, curvature, MLS patches, FPFH features). The line and every
+// targets with (kd-tree, normals, curvature, MLS patch storage, FPFH features). The line and every
 // use of the number in its formulas must state it (to the byte per point).
 TEST(TargetTest, DocsStateTheBytesPerPointOfACachedTarget) {
   auto cloud = ReadPointCloud(MLSREG_SOURCE_DIR "/data/bunny/bun045.ply");
   ASSERT_TRUE(cloud.ok()) << cloud.status();
   const std::size_t points = cloud->size();
-  auto target = Target::Build(*std::move(cloud));
+  auto target = Target::Build(*std::move(cloud), TargetOptions::ForServing());
   ASSERT_TRUE(target.ok()) << target.status();
   const double per_point = static_cast<double>((*target)->MemoryBytes()) / points;
   auto docs = ReadFileBytes(MLSREG_SOURCE_DIR "/docs/operations.md");

@@ -38,12 +38,11 @@ MlsCorrespondenceFinder::MlsCorrespondenceFinder(const Target& target, const Mls
                                                  bool warm_start, FarQueryPolicy far_queries,
                                                  MlsProjectionKind projection)
     : target_(target),
-      projector_(target.points(), target.tree(), options,
-                 target.surface().oriented ? &target.surface().normals : nullptr),
+      projector_(target.points(), target.tree(), options, target.cloud().viewpoint),
       warm_start_(warm_start),
       far_queries_(far_queries),
       projection_(projection),
-      oriented_(target.surface().oriented),
+      oriented_(target.oriented()),
       radius_(options.radius) {
   projector_.set_seed_far_queries_from_nearest_sample(far_queries != FarQueryPolicy::kDrop);
   if (projection_ != MlsProjectionKind::kExact && target.mls_patches() &&
@@ -67,8 +66,8 @@ bool MlsCorrespondenceFinder::EnsurePatches() {
   MlsOptions options = projector_.options();
   options.seed_far_queries_from_nearest_sample = true;
   absl::StatusOr<MlsPatches> built =
-      MlsPatches::Build(target_.points(), target_.tree(), options,
-                        oriented_ ? &target_.surface().normals : nullptr, threads_, should_stop_);
+      MlsPatches::Build(target_.points(), target_.tree(), options, target_.cloud().viewpoint,
+                        PatchFitting::kOnFirstUse, threads_, should_stop_);
   if (absl::IsCancelled(built.status())) return false;
   if (built.ok()) {
     own_patches_ = *std::move(built);

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "mlsreg/core/parallel_for.h"
 #include "mlsreg/geometry/sampling.h"
 #include "mlsreg/geometry/wendland.h"
 
@@ -24,56 +25,93 @@ HeightWithGradient EvaluateHeight(const std::array<double, 10>& c, double x, dou
 
 }  // namespace
 
-MlsPatches::MlsPatches(const std::vector<Vec3>& points, const KdTree& tree, const MlsOptions& mls)
-    : points_(&points), tree_(&tree), mls_(mls) {}
+MlsPatches::MlsPatches(const std::vector<Vec3>& points, const KdTree& tree, const MlsOptions& mls,
+                       const std::optional<Vec3>& viewpoint)
+    : points_(&points), tree_(&tree), mls_(mls) {
+  MlsOptions exact = mls;
+  exact.seed_far_queries_from_nearest_sample = false;
+  projector_ = std::make_unique<MlsProjector>(points, tree, exact, viewpoint);
+}
 MlsPatches::MlsPatches(MlsPatches&&) noexcept = default;
 MlsPatches& MlsPatches::operator=(MlsPatches&&) noexcept = default;
 MlsPatches::~MlsPatches() = default;
 
 absl::StatusOr<MlsPatches> MlsPatches::Build(const std::vector<Vec3>& points, const KdTree& tree,
                                              const MlsOptions& mls,
-                                             const std::vector<Vec3>* oriented_normals, int threads,
+                                             const std::optional<Vec3>& viewpoint,
+                                             PatchFitting fitting, int threads,
                                              const StopCheck& should_stop) {
   if (!(mls.radius > 0.0)) return absl::InvalidArgumentError("MLS patches need a radius > 0");
-  MlsPatches patches(points, tree, mls);
-  const std::vector<std::uint32_t> representatives =
-      VoxelRepresentatives(points, kAnchorSpacingPerRadius * mls.radius);
+  MlsPatches patches(points, tree, mls, viewpoint);
+  for (std::uint32_t i : VoxelRepresentatives(points, kAnchorSpacingPerRadius * mls.radius)) {
+    patches.anchors_.push_back(points[i]);
+  }
+  const std::size_t count = patches.anchors_.size();
+  patches.patches_.resize(count);
+  patches.states_ = std::make_unique<std::atomic<std::uint8_t>[]>(count);
+  for (std::size_t i = 0; i < count; ++i) patches.states_[i].store(kUnfitted);
+  patches.anchor_tree_ = std::make_unique<KdTree>(patches.anchors_);
+  if (fitting == PatchFitting::kOnFirstUse) return patches;
   if (should_stop && should_stop()) return absl::CancelledError("MLS patch build cancelled");
 
-  // Each anchor projected by the exact Algorithm 1; its final fit becomes the patch.
-  MlsOptions exact = mls;
-  exact.seed_far_queries_from_nearest_sample = false;
-  const MlsProjector projector(points, tree, exact, oriented_normals);
-  std::vector<Patch> fitted(representatives.size());
-  std::vector<Vec3> projected(representatives.size());
-  std::vector<std::uint8_t> ok(representatives.size(), 0);
-  const bool finished = ProjectEach(
-      projector, representatives.size(),
-      [&](std::size_t i) -> const Vec3& { return points[representatives[i]]; },
-      [&](std::size_t i, const MlsProjection& projection,
-          const MlsProjector::Workspace& workspace) {
-        if (projection.status != ProjectionStatus::kOk) return;
-        const MlsLocalFit& fit = workspace.last_fit;
-        fitted[i] = Patch{fit.origin,       fit.frame.tangent_u,     fit.frame.tangent_v,
-                          fit.frame.normal, fit.height.coefficients, fit.frame.surface_variation};
-        projected[i] = projection.point;
-        ok[i] = 1;
-      },
-      threads, should_stop);
-  if (!finished) return absl::CancelledError("MLS patch build cancelled");
-  for (std::size_t i = 0; i < representatives.size(); ++i) {
-    if (!ok[i]) continue;
-    patches.patches_.push_back(fitted[i]);
-    patches.anchors_.push_back(projected[i]);
-  }
-  if (patches.patches_.empty()) {
+  std::atomic<bool> stopped{false}, any_fitted{false};
+  ParallelFor(count, threads, [&](std::size_t begin, std::size_t end, int) {
+    MlsProjector::Workspace workspace;
+    StopPoller stop(should_stop, 64);
+    for (std::size_t i = begin; i < end; ++i) {
+      if (stopped.load(std::memory_order_relaxed) || stop.Poll()) {
+        stopped = true;
+        return;
+      }
+      const bool ok = patches.Fit(i, workspace, patches.patches_[i]);
+      if (ok) any_fitted.store(true, std::memory_order_relaxed);
+      patches.states_[i].store(ok ? kFitted : kFailed, std::memory_order_relaxed);
+    }
+  });
+  if (stopped) return absl::CancelledError("MLS patch build cancelled");
+  if (!any_fitted) {
     return absl::FailedPreconditionError(
         "no MLS patch could be fitted: the cloud has no neighbourhood of 3 samples within r");
   }
-  patches.patches_.shrink_to_fit();
-  patches.anchors_.shrink_to_fit();
-  patches.anchor_tree_ = std::make_unique<KdTree>(patches.anchors_);
   return patches;
+}
+
+bool MlsPatches::Fit(std::size_t i, MlsProjector::Workspace& workspace, Patch& out) const {
+  const MlsProjection projection = projector_->Project(anchors_[i], workspace);
+  if (projection.status != ProjectionStatus::kOk) return false;
+  const MlsLocalFit& fit = workspace.last_fit;
+  out = Patch{fit.origin,       fit.frame.tangent_u,     fit.frame.tangent_v,
+              fit.frame.normal, fit.height.coefficients, fit.frame.surface_variation};
+  return true;
+}
+
+bool MlsPatches::PatchAt(std::size_t i, Patch& out) const {
+  std::atomic<std::uint8_t>& state = states_[i];
+  std::uint8_t seen = state.load(std::memory_order_acquire);
+  if (seen == kFitted) {
+    out = patches_[i];
+    return true;
+  }
+  if (seen == kFailed) return false;
+  // Unfitted, or another thread is fitting it: fit here (the fit is a pure function of the
+  // anchor, so both threads get the same patch); only the thread that claims the patch stores it.
+  thread_local MlsProjector::Workspace workspace;
+  const bool ok = Fit(i, workspace, out);
+  if (seen == kUnfitted &&
+      state.compare_exchange_strong(seen, kFitting, std::memory_order_acquire)) {
+    if (ok) patches_[i] = out;
+    state.store(ok ? kFitted : kFailed, std::memory_order_release);
+  }
+  return ok;
+}
+
+std::size_t MlsPatches::fitted() const {
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < patches_.size(); ++i) {
+    const std::uint8_t s = states_[i].load(std::memory_order_relaxed);
+    n += s == kFitted || s == kFailed;
+  }
+  return n;
 }
 
 MlsPatches::Blend MlsPatches::BlendAt(const Vec3& query, const Vec3& near) const {
@@ -91,15 +129,16 @@ MlsPatches::Blend MlsPatches::BlendAt(const Vec3& query, const Vec3& near) const
                              ? std::sqrt(distance_squared[k])
                              : 2.0 * std::sqrt(distance_squared[found - 1]) + mls_.radius;
   const double r = mls_.radius, inv_r = 1.0 / r;
-  const Vec3& reference_normal = patches_[index[0]].n;
+  Vec3 reference_normal = Vec3::Zero();  // the first contributing patch's
   Vec3 point_sum = Vec3::Zero(), normal_sum = Vec3::Zero();
   double variation_sum = 0.0, weight_sum = 0.0;
   int contributing = 0;
+  Patch patch;
   for (std::size_t j = 0; j < used; ++j) {
     double w = WendlandWeight(std::sqrt(distance_squared[j]), support);
     if (j == 0 && !(w > 0.0)) w = 1.0;  // all k+1 equidistant: the nearest alone
-    if (!(w > 0.0)) continue;
-    const Patch& patch = patches_[index[j]];
+    if (!(w > 0.0) || !PatchAt(index[j], patch)) continue;
+    if (contributing == 0) reference_normal = patch.n;
     const Vec3 local = (query - patch.origin) * inv_r;
     const double x = local.dot(patch.u), y = local.dot(patch.v);
     const HeightWithGradient h = EvaluateHeight(patch.coefficients, x, y);
@@ -111,6 +150,7 @@ MlsPatches::Blend MlsPatches::BlendAt(const Vec3& query, const Vec3& near) const
     weight_sum += w;
     ++contributing;
   }
+  if (contributing == 0) return blend;
   MlsProjection& p = blend.projection;
   p.point = point_sum / weight_sum;
   p.normal = normal_sum.normalized();
@@ -163,7 +203,8 @@ MlsProjection MlsPatches::ProjectNear(const Vec3& query, const Vec3& near,
 }
 
 std::size_t MlsPatches::MemoryBytes() const {
-  return patches_.capacity() * sizeof(Patch) + anchors_.capacity() * sizeof(Vec3) +
+  return patches_.capacity() * (sizeof(Patch) + sizeof(std::atomic<std::uint8_t>)) +
+         anchors_.capacity() * sizeof(Vec3) + sizeof(MlsProjector) +
          (anchor_tree_ ? anchor_tree_->MemoryBytes() : 0);
 }
 

@@ -21,8 +21,8 @@ std::string_view ProjectionStatusName(ProjectionStatus status) {
 }
 
 MlsProjector::MlsProjector(const std::vector<Vec3>& points, const KdTree& tree,
-                           const MlsOptions& options, const std::vector<Vec3>* oriented_normals)
-    : points_(points), tree_(tree), oriented_normals_(oriented_normals), options_(options) {
+                           const MlsOptions& options, const std::optional<Vec3>& viewpoint)
+    : points_(points), tree_(tree), viewpoint_(viewpoint), options_(options) {
   if (options_.tolerance <= 0.0) options_.tolerance = 1e-3 * options_.radius;
 }
 
@@ -36,21 +36,19 @@ ProjectionStatus MlsProjector::Fit(const Vec3& s, Workspace& ws, int& neighbors)
   const std::size_t n = ws.candidates.size();
   if (ws.weights.size() < n) ws.weights.resize(n);
   WeightedCovariance covariance(s);
-  Vec3 normal_hint = Vec3::Zero();
   for (std::size_t j = 0; j < n; ++j) {
     const Vec3& q = points_[ws.candidates[j].first];
     const double w = WendlandWeight((q - s).norm(), r);
     ws.weights[j] = w;
     if (w <= 0.0) continue;
     covariance.Add(q, w);
-    if (oriented_normals_) normal_hint += w * (*oriented_normals_)[ws.candidates[j].first];
   }
   neighbors = covariance.count();
   if (covariance.count() < 3) return ProjectionStatus::kTooFewNeighbors;
   MlsLocalFit& fit = ws.last_fit;
   LocalFrame& frame = fit.frame;
   if (!covariance.Finalize(frame)) return ProjectionStatus::kDegenerate;
-  if (oriented_normals_ && frame.normal.dot(normal_hint) < 0.0) {
+  if (viewpoint_ && frame.normal.dot(*viewpoint_ - frame.mean) < 0.0) {
     frame.normal = -frame.normal;
     frame.tangent_v = -frame.tangent_v;  // keep (u, v, n) right-handed
   }

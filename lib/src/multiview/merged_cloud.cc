@@ -40,10 +40,8 @@ absl::StatusOr<ResampledCloud> ResampleOnMlsSurface(const PointCloud& merged, do
     return absl::InvalidArgumentError("radius_d: must be in [0, 100] (0: automatic)");
   }
   if (options.threads < 1) return absl::InvalidArgumentError("threads: must be >= 1");
-  // Index, normals and noise of the merged cloud; no patches or features.
+  // Index and noise of the merged cloud (its patches and features are never used).
   TargetOptions target_options;
-  target_options.build_mls_patches = false;
-  target_options.build_global_features = false;
   target_options.threads = options.threads;
   auto built = Target::Build(merged, target_options, should_stop);
   if (!built.ok()) {
@@ -60,8 +58,7 @@ absl::StatusOr<ResampledCloud> ResampleOnMlsSurface(const PointCloud& merged, do
   MlsOptions mls;
   mls.radius = out.radius_d * d;
   mls.search_margin = 0.25;
-  const MlsProjector projector(surface.points(), surface.tree(), mls,
-                               surface.surface().oriented ? &surface.surface().normals : nullptr);
+  const MlsProjector projector(surface.points(), surface.tree(), mls, surface.cloud().viewpoint);
 
   const std::vector<std::uint32_t> samples =
       VoxelRepresentatives(surface.points(), options.spacing_d * d);

@@ -93,15 +93,8 @@ class AutoRegistration {
     // Stage 2: global candidates from feature matches, each aligned on the voxel clouds.
     phase = Clock::now();
     const StopCheck& should_stop = problem_.callbacks->should_stop;
-    const FeatureCloud* target_features = target_.features();
-    std::optional<FeatureCloud> own_target_features;
-    if (!target_features) {  // a target built without them
-      own_target_features = BuildVoxelFeatureCloud(
-          target_.points(), FeatureScaleFor(target_.points(), target_.scales()),
-          target_.cloud().viewpoint, should_stop, problem_.threads);
-      if (!own_target_features) return Cancelled(std::move(start));
-      target_features = &*own_target_features;
-    }
+    const FeatureCloud* target_features = target_.features(should_stop);
+    if (!target_features) return Cancelled(std::move(start));
     const std::optional<FeatureCloud> source_features =
         BuildVoxelFeatureCloud(problem_.source->points, target_features->scale,
                                problem_.source->viewpoint, should_stop, problem_.threads);

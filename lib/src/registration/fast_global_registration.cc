@@ -65,9 +65,11 @@ absl::StatusOr<RegistrationResult> internal::RunFastGlobalRegistration(
   const std::optional<FeatureCloud> s =
       BuildFeatureCloud(source.points, source_tree, nullptr, normal_radius, source.viewpoint, scale,
                         callbacks.should_stop);
+  // The target's own features (made on first use) serve when they are at FGR's scale.
   std::optional<FeatureCloud> own_target;
-  const FeatureCloud* t = target.features();
-  if (s && (!t || !SameScale(t->scale, scale))) {
+  const bool target_scale = SameScale(FeatureScaleFor(target.points(), target.scales()), scale);
+  const FeatureCloud* t = s && target_scale ? target.features(callbacks.should_stop) : nullptr;
+  if (s && !target_scale) {
     own_target = BuildFeatureCloud(target.points(), target.tree(), &target.surface(), 0.0,
                                    target.cloud().viewpoint, scale, callbacks.should_stop);
     t = own_target ? &*own_target : nullptr;

@@ -50,6 +50,23 @@ bool Stalled(std::span<const Vec3> moved, const RigidTransform& transform,
   return true;
 }
 
+// True when the `window` most recent poses all put the samples within an RMS distance of `band`
+// of where `transform` puts them (`moved`).
+bool StalledRms(std::span<const Vec3> moved, const RigidTransform& transform,
+                std::span<const RigidTransform> recent, double band, std::size_t window) {
+  if (!(band > 0.0) || recent.size() < window || moved.empty()) return false;
+  const double limit = band * band * static_cast<double>(moved.size());
+  for (const RigidTransform& pose : recent.first(window)) {
+    const RigidTransform back = pose * transform.inverse(Eigen::Isometry);
+    double sum = 0.0;
+    for (const Vec3& y : moved) {
+      sum += (back * y - y).squaredNorm();
+      if (sum > limit) return false;
+    }
+  }
+  return true;
+}
+
 // The largest motion of a sample under `increment` applied after `pose`.
 double StepSize(std::span<const Vec3> samples, const RigidTransform& pose,
                 const RigidTransform& increment) {
@@ -99,11 +116,17 @@ void RunIcpLoop(IcpStep& step, RigidTransform pose, const LoopSettings& settings
         if (settings.rule == StopRule::kStepSize) {
           converged = StepSize(step.samples(), before, *increment) < threshold;
         } else {
+          // The pose's standard error from this iteration's accepted residuals.
+          const double standard_error =
+              report.rmse / std::sqrt(static_cast<double>(report.counts.matched));
           converged =
               ReturnsToRecentPose(step.moved_samples(), pose, recent_poses, threshold) ||
               (!coarse && Stalled(step.moved_samples(), pose, recent_poses, settings.stall)) ||
               Stalled(step.moved_samples(), pose, recent_poses, settings.noise_stall,
-                      kNoiseStallWindow);
+                      kNoiseStallWindow) ||
+              (!coarse &&
+               StalledRms(step.moved_samples(), pose, recent_poses,
+                          settings.stall_standard_errors * standard_error, kNoiseStallWindow));
         }
       }
       result.timings.optimisation += Seconds(phase);

@@ -49,7 +49,10 @@ struct LoopSettings {
   double coarse_convergence = 0.0;  // while step.coarse()
   double stall = 0.0;               // 0 disables; not in a coarse phase
   double noise_stall = 0.0;         // 0 disables; both phases
-  int iteration_offset = 0;         // reports are numbered after the iterations of earlier phases
+  // Multiple of the pose's standard error rmse / sqrt(accepted) within which the recent poses
+  // count as stalled (RMS over the samples); 0 disables; not in a coarse phase.
+  double stall_standard_errors = 0.0;
+  int iteration_offset = 0;  // reports are numbered after the iterations of earlier phases
 };
 
 // Runs the loop from `pose`, appending to result.trace and setting result.transform,

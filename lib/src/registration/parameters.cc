@@ -130,6 +130,11 @@ std::vector<ParameterSpec> MakeTable() {
           "stall_noise_fraction", "stall-noise", "stall_noise_fraction", sicp, kClosed(0, 10),
           "also stop when the last 8 poses stay within this fraction of the estimated noise",
           "(0 disables)"),
+      Row<&O::stall_standard_errors>(
+          "stall_standard_errors", "stall-standard-errors", "stall_standard_errors", sicp,
+          kClosed(0, 100),
+          "also stop when the last 6 poses stay within this many standard errors rmse/sqrt(n)",
+          "(0 disables)"),
       Row<&O::sicp_length_unit_d>("sicp_length_unit_d", "sicp-unit", "sicp_length_unit_d", sicp,
                                   kOpenClosed(0, 1e6), "Sparse ICP length unit (units of d)"),
       Row<&O::sicp, &SparseIcpOptions::p>("sicp.p", "sicp-p", "sicp_p", sicp, kOpenClosed(0, 1),

@@ -277,6 +277,7 @@ absl::StatusOr<RegistrationResult> RunSparseIcp(const RegistrationProblem& probl
   settings.coarse_convergence = options.coarse_convergence_d * d;
   settings.stall = options.stall_d * d;
   settings.noise_stall = options.stall_noise_fraction * problem.noise_d * d;
+  settings.stall_standard_errors = options.stall_standard_errors;
   settings.iteration_offset = problem.iteration_offset;
   RunIcpLoop(step, start_pose, settings, *problem.callbacks, problem.start, result);
   result.timings.total = Seconds(problem.start);

@@ -15,7 +15,7 @@ class ClosestPointFinder final : public CorrespondenceFinder {
  public:
   explicit ClosestPointFinder(const Target& target) : target_(target) {}
   void Find(std::span<const Vec3> queries, std::span<Correspondence> out) override;
-  bool oriented_normals() const override { return target_.surface().oriented; }
+  bool oriented_normals() const override { return target_.oriented(); }
 
  private:
   const Target& target_;
@@ -110,7 +110,7 @@ class ReverseCalibrationFinder final : public CorrespondenceFinder {
                            double phong_shape_factor = kPhongShapeFactor)
       : target_(target), interpolation_(interpolation), alpha_(phong_shape_factor) {}
   void Find(std::span<const Vec3> queries, std::span<Correspondence> out) override;
-  bool oriented_normals() const override { return target_.surface().oriented; }
+  bool oriented_normals() const override { return target_.oriented(); }
 
  private:
   const Target& target_;

@@ -2,24 +2,30 @@
 // MLS correspondence costs a few nearest-neighbour lookups instead of Algorithm 1's iterated
 // radius searches and fits.
 //
-// Built once per target and radius r:
+// Per target and radius r:
 //   - anchors: one target sample per cell of a voxel grid of edge h = 0.5 r (the sample nearest
-//     the cell's centre);
-//   - each anchor is projected onto the MLS surface by the exact Algorithm 1 (MlsProjector), and
-//     the fit of its final iteration is kept: the reference plane (origin, u, v, n) and the
-//     cubic height field over it, fitted with the Wendland weights of radius r. A patch is
-//     therefore exactly the local MLS surface at its anchor, with the same de-noising.
+//     the cell's centre), indexed when the patches are built;
+//   - each anchor's patch: the anchor projected onto the MLS surface by the exact Algorithm 1
+//     (MlsProjector), keeping the fit of its final iteration: the reference plane (origin, u, v,
+//     n) and the cubic height field over it, fitted with the Wendland weights of radius r. A patch
+//     is therefore exactly the local MLS surface at its anchor, with the same de-noising.
+//     Patches are fitted with the anchors (PatchFitting::kAll) or when a query first needs them
+//     (kOnFirstUse: a registration touches the patches near its source only); the values are the
+//     same either way.
 // A query q is projected vertically onto each of the k patches whose anchors lie nearest to a
 // point near q (first q itself, then q's first estimate on the surface; a warm start supplies a
 // point already on it), and the k surface points and normals are blended with Wendland weights
-// that fall to zero at the (k+1)-th anchor: a partition of unity, continuous in q.
+// that fall to zero at the (k+1)-th anchor: a partition of unity, continuous in q. An anchor whose
+// fit failed (fewer than 3 samples within r) takes no part.
 // Departure from the paper: Algorithm 1 refits at the iterate; the patches refit only at anchors
 // (see the README's departures). A plane is reproduced exactly.
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <cstddef>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "absl/status/statusor.h"
@@ -30,23 +36,29 @@
 
 namespace mlsreg {
 
+// When the patches are fitted: all with the anchors, or each when a query first needs it.
+enum class PatchFitting : std::uint8_t { kAll, kOnFirstUse };
+
 class MlsPatches {
  public:
   // Anchor spacing h as a fraction of r, and the patches blended per query.
   static constexpr double kAnchorSpacingPerRadius = 0.5;
   static constexpr int kBlendedPatches = 4;
 
-  // `points`, `tree` and `oriented_normals` (may be null: output normals then have an arbitrary
-  // but consistent sign per query) must outlive the patches; `mls` as for MlsProjector.
-  // CANCELLED when `should_stop` says stop; FAILED_PRECONDITION when no anchor could be fitted.
+  // `points` and `tree` must outlive the patches; `mls` and `viewpoint` (output normals point
+  // toward it; without one their sign is arbitrary but consistent per query) as for MlsProjector.
+  // With kAll: CANCELLED when `should_stop` says stop, FAILED_PRECONDITION when no anchor could
+  // be fitted. With kOnFirstUse such anchors fail their queries instead (kTooFewNeighbors).
   static absl::StatusOr<MlsPatches> Build(const std::vector<Vec3>& points, const KdTree& tree,
                                           const MlsOptions& mls,
-                                          const std::vector<Vec3>* oriented_normals, int threads,
+                                          const std::optional<Vec3>& viewpoint,
+                                          PatchFitting fitting, int threads,
                                           const StopCheck& should_stop = {});
 
   // The MLS projection of `query`. With `seed_far_queries`, a query farther than r from every
   // anchor is replaced by its nearest target sample (seeded_from_nearest_sample); otherwise it
-  // fails with kTooFewNeighbors. Allocation-free and thread-safe.
+  // fails with kTooFewNeighbors. Thread-safe; allocation-free once the patches it blends are
+  // fitted.
   MlsProjection Project(const Vec3& query, bool seed_far_queries) const;
   // The same, with the patches chosen around `near`, a point already close to the surface (a
   // warm start: the query on its previous projection's tangent plane). One blend instead of two.
@@ -55,7 +67,11 @@ class MlsPatches {
   double radius() const { return mls_.radius; }
   int polynomial_degree() const { return mls_.polynomial_degree; }
   const MlsOptions& mls_options() const { return mls_; }
+  // Anchors (patches, fitted or not).
   std::size_t size() const { return patches_.size(); }
+  // Patches fitted so far (including anchors whose fit failed).
+  std::size_t fitted() const;
+  // Bytes held: every anchor's patch storage, whether fitted or not, so the count never grows.
   std::size_t MemoryBytes() const;
 
   MlsPatches(MlsPatches&&) noexcept;
@@ -68,6 +84,8 @@ class MlsPatches {
     std::array<double, 10> coefficients;  // HeightField monomials over (x, y) / r, heights / r
     double surface_variation;
   };
+  // A patch's state: not yet fitted, being fitted by one thread, fitted, or its fit failed.
+  enum State : std::uint8_t { kUnfitted, kFitting, kFitted, kFailed };
   // One blend: the k patches nearest `near` evaluated at `query`.
   struct Blend {
     bool ok = false;
@@ -75,7 +93,12 @@ class MlsPatches {
     MlsProjection projection;
   };
 
-  MlsPatches(const std::vector<Vec3>& points, const KdTree& tree, const MlsOptions& mls);
+  MlsPatches(const std::vector<Vec3>& points, const KdTree& tree, const MlsOptions& mls,
+             const std::optional<Vec3>& viewpoint);
+  // Algorithm 1 from anchor `i`; false when it fails.
+  bool Fit(std::size_t i, MlsProjector::Workspace& workspace, Patch& out) const;
+  // Anchor i's patch into `out`, fitting it now if no thread has; false when its fit failed.
+  bool PatchAt(std::size_t i, Patch& out) const;
   Blend BlendAt(const Vec3& query, const Vec3& near) const;
   MlsProjection Finish(const Vec3& query, const Vec3& near, bool seed_far_queries,
                        int blends) const;
@@ -83,8 +106,12 @@ class MlsPatches {
   const std::vector<Vec3>* points_;
   const KdTree* tree_;
   MlsOptions mls_;
-  std::vector<Patch> patches_;
-  std::vector<Vec3> anchors_;  // each patch's projected anchor, indexed by anchor_tree_
+  std::unique_ptr<MlsProjector> projector_;  // the exact Algorithm 1 that fits the patches
+  // Written once per patch, by the thread that moved its state from kUnfitted to kFitting;
+  // read only after its state is kFitted (acquire).
+  mutable std::vector<Patch> patches_;
+  std::unique_ptr<std::atomic<std::uint8_t>[]> states_;
+  std::vector<Vec3> anchors_;  // the anchor samples, indexed by anchor_tree_
   std::unique_ptr<KdTree> anchor_tree_;
 };
 

@@ -4,6 +4,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <optional>
 #include <string_view>
 #include <vector>
 
@@ -44,8 +45,8 @@ std::string_view ProjectionStatusName(ProjectionStatus status);
 
 struct MlsProjection {
   Vec3 point = Vec3::Zero();
-  // Surface normal from the gradient of the fitted polynomial, unit length. Its sign follows the
-  // target normals when the projector has oriented ones, and is arbitrary otherwise.
+  // Surface normal from the gradient of the fitted polynomial, unit length. It points toward the
+  // projector's viewpoint when it has one, and its sign is arbitrary otherwise.
   Vec3 normal = Vec3::UnitZ();
   // Surface variation H of the weighted PCA at the final iterate (paper Eq. 8).
   double curvature = 0.0;
@@ -60,7 +61,7 @@ struct MlsProjection {
 // One step of Algorithm 1 at an iterate s (lines 4-9): the Wendland-weighted reference plane
 // around s and the height field fitted over it.
 struct MlsLocalFit {
-  LocalFrame frame;            // weighted PCA around s, oriented like the target normals when known
+  LocalFrame frame;            // weighted PCA around s, toward the viewpoint when known
   Vec3 origin = Vec3::Zero();  // s projected onto the reference plane: the height field's origin
   // g over ((p - origin) . u, (p - origin) . v) / r, heights in units of r.
   HeightField height;
@@ -77,10 +78,10 @@ class MlsProjector {
     MlsLocalFit last_fit;
   };
 
-  // `points` and `tree` must outlive the projector. `oriented_normals` (may be null) are per-point
-  // target normals with a meaningful sign, used only to orient the output normals.
+  // `points` and `tree` must outlive the projector. With a `viewpoint` (where the target was
+  // scanned from), output normals point toward it; without, their sign is arbitrary.
   MlsProjector(const std::vector<Vec3>& points, const KdTree& tree, const MlsOptions& options,
-               const std::vector<Vec3>* oriented_normals = nullptr);
+               const std::optional<Vec3>& viewpoint = std::nullopt);
 
   // Algorithm 1 started at the query itself (s <- p).
   MlsProjection Project(const Vec3& query, Workspace& workspace) const;
@@ -102,7 +103,7 @@ class MlsProjector {
 
   const std::vector<Vec3>& points_;
   const KdTree& tree_;
-  const std::vector<Vec3>* oriented_normals_;
+  std::optional<Vec3> viewpoint_;
   MlsOptions options_;
 };
 

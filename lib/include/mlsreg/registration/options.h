@@ -122,7 +122,13 @@ struct RegistrationOptions {
   // last 8 poses lie within this fraction of the estimated noise sigma (target and source, units
   // of d) of the current one, in both phases. Chosen on the tuning split; 0 disables.
   double stall_noise_fraction = 0.1;  // with a window of 6 poses (icp_loop.cc)
-  SparseIcpOptions sicp;              // length_unit and stop are derived from the two fields above
+  // The pose can be no more precise than its correspondences' standard error, rmse / sqrt(n)
+  // (n accepted): also converged when the last 6 poses all lie within this many standard errors
+  // of the current one, as the RMS displacement of the samples. A length from the data alone:
+  // on a street scan with 500 correspondences it ends the millimetre jitter that the stall rules
+  // in d never see; on clean objects the convergence rule ends first. 0 disables.
+  double stall_standard_errors = 2.0;
+  SparseIcpOptions sicp;  // length_unit and stop are derived from the two fields above
   MlsParams mls;
   FilterParams filter;
   GicpParams gicp;
