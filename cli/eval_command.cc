@@ -6,11 +6,14 @@
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <thread>
 #include <utility>
 #include <vector>
 
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
@@ -21,6 +24,7 @@
 #include "cli/report.h"
 #include "mlsreg/core/parallel_for.h"
 #include "mlsreg/evaluation/evaluation.h"
+#include "mlsreg/evaluation/shard.h"
 
 namespace mlsreg::cli {
 namespace {
@@ -38,6 +42,9 @@ struct EvalArgs {
   double translation_max_d = 0.0;
   int jobs = HardwareThreads();
   int threads = 1;
+  std::string shard;               // "i/N"
+  int shard_from_env = 0;          // N; i from JOB_COMPLETION_INDEX
+  std::vector<std::string> merge;  // shard CSVs to merge instead of running
   RegistrationFlags flags;
 };
 
@@ -123,39 +130,124 @@ bool Perturbs(const EvalArgs& args) {
          args.translation_max_d != 0.0;
 }
 
-int RunEval(const EvalArgs& args) {
-  auto registration = args.flags.ToOptions();
-  if (!registration.ok()) return Fail(registration.status());
-  for (const auto& [flag, path] :
-       {std::pair{"--out", &args.out}, std::pair{"--json", &args.json}}) {
-    if (path->empty() || *path == "-") continue;
-    if (absl::Status s = CheckWritable(flag, *path); !s.ok()) return Fail(s);
-  }
-  EvaluationOptions options;
-  options.registration = *registration;
-  options.perturbation = {args.angle_deg, args.translation_d, args.perturb_seed,
-                          args.uniform_rotation, args.translation_max_d};
-  options.jobs = args.jobs;
-  options.threads = args.threads;
-  options.methods.clear();
-  for (absl::string_view name : absl::StrSplit(args.methods, ',', absl::SkipEmpty())) {
-    auto method = ParseMethod(std::string_view(name.data(), name.size()));
-    if (!method.ok()) return Fail(method.status());
-    options.methods.push_back(*method);
-  }
-  if (options.methods.empty()) return Fail(absl::InvalidArgumentError("--methods is empty"));
+// The runs of an evaluation as CSV cells (unquoted), one row per (problem, method), in the order
+// of the manifests, their problems and --methods. The summary is computed from these cells, so a
+// run and a merge of its shards print the same numbers.
+struct EvalTable {
+  std::vector<std::string> header;
+  std::vector<std::vector<std::string>> rows;
 
-  std::vector<std::string> extra_columns;
-  std::vector<std::string> rows;
-  std::map<Method, std::vector<double>> rmse_by_method, time_by_method;
-  std::map<Method, int> successes, runs, errors;
-  std::vector<std::string> failures;  // one line per run that could not run
-  ProgressPrinter progress;
+  std::size_t Column(std::string_view name) const {
+    return static_cast<std::size_t>(std::find(header.begin(), header.end(), name) - header.begin());
+  }
+};
+
+std::vector<std::string> HeaderFor(const std::vector<Manifest>& manifests) {
+  std::vector<std::string> header(std::begin(kFixedColumns), std::end(kFixedColumns));
+  for (const Manifest& manifest : manifests) {
+    for (const std::string& c : manifest.extra_columns) {
+      if (std::find(header.begin() + std::size(kFixedColumns), header.end(), c) == header.end()) {
+        header.push_back(c);
+      }
+    }
+  }
+  return header;
+}
+
+absl::StatusOr<std::vector<Manifest>> ReadManifests(const EvalArgs& args) {
+  std::vector<Manifest> manifests;
   for (const std::string& path : args.manifests) {
     auto manifest = ReadManifest(path);
-    if (!manifest.ok()) return Fail(manifest.status());
+    if (!manifest.ok()) return manifest.status();
+    manifests.push_back(*std::move(manifest));
+  }
+  return manifests;
+}
+
+absl::StatusOr<std::vector<Method>> ParseMethods(const std::string& list) {
+  std::vector<Method> methods;
+  for (absl::string_view name : absl::StrSplit(list, ',', absl::SkipEmpty())) {
+    auto method = ParseMethod(std::string_view(name.data(), name.size()));
+    if (!method.ok()) return method.status();
+    methods.push_back(*method);
+  }
+  if (methods.empty()) return absl::InvalidArgumentError("--methods is empty");
+  return methods;
+}
+
+// One outcome as the cells of kFixedColumns (the extra columns are appended by the caller).
+std::vector<std::string> OutcomeCells(const std::string& path, const RegistrationProblem& p,
+                                      const ProblemOutcome& o, const std::string& label) {
+  std::vector<std::string> f = {path, p.id, std::string(MethodName(o.method)), p.source_path,
+                                p.target_path};
+  if (!o.status.ok()) {
+    f.push_back(std::string(o.status.message()));
+    f.resize(std::size(kFixedColumns) - 1);
+    f.push_back(label);
+    return f;
+  }
+  const RegistrationResult& r = o.result;
+  f.push_back("ok");
+  f.push_back(absl::StrFormat("%.6g", o.error.rmse_d));
+  f.push_back(o.error.success ? "1" : "0");
+  f.push_back(absl::StrFormat("%.6g", o.error.rotation_deg));
+  f.push_back(absl::StrFormat("%.6g", o.error.translation_d));
+  f.push_back(absl::StrFormat("%.6g", o.initial_error.rmse_d));
+  f.push_back(absl::StrFormat("%d", r.iterations));
+  f.push_back(std::string(TerminationName(r.termination)));
+  f.push_back(r.converged ? "1" : "0");
+  f.push_back(absl::StrFormat("%.9g", r.sampling_distance));
+  for (double t : {r.timings.total, r.timings.preprocessing, r.timings.subsampling,
+                   r.timings.matching, r.timings.optimisation, o.target_build_seconds}) {
+    f.push_back(absl::StrFormat("%.6g", t));
+  }
+  for (double v : {r.mls_radius_d, r.target_noise_d, r.source_noise_d}) {
+    f.push_back(absl::StrFormat("%.4g", v));
+  }
+  f.push_back(TraceColumn(r, false));
+  f.push_back(TraceColumn(r, true));
+  f.push_back(JoinNumbers(o.trace_error_d));
+  f.push_back(absl::StrFormat("%.6g", o.initial_error.rotation_deg));
+  std::vector<double> initial;
+  for (int i = 0; i < 16; ++i) initial.push_back(o.initial(i / 4, i % 4));
+  f.push_back(JoinNumbers(initial, "%.10g"));
+  if (const std::optional<VerificationScore>& v = r.verification) {
+    f.push_back(v->verified() ? "1" : "0");
+    f.push_back(std::string(VerdictName(v->verdict)));
+    f.push_back(absl::StrFormat("%.4f", v->inlier_fraction));
+    f.push_back(absl::StrFormat("%.4f", v->explained_fraction));
+    f.push_back(absl::StrFormat("%.4f", v->worst_direction_fraction));
+    f.push_back(absl::StrFormat("%.4f", v->inlier_distance_d));
+  } else {
+    f.insert(f.end(), 6, std::string());
+  }
+  if (const std::optional<AutoReport>& a = r.auto_report; a && !a->candidates.empty()) {
+    f.push_back(absl::StrFormat("%d", a->chosen));
+    f.push_back(absl::StrFormat("%zu", a->candidates.size()));
+    f.push_back(a->early_exit ? "1" : "0");
+    f.push_back(absl::StrFormat("%.4f", a->candidates[0].score.inlier_fraction));
+    f.push_back(absl::StrFormat("%.4f", a->verification.inlier_fraction));
+    f.push_back(absl::StrFormat("%.4f", a->verification.rmse_d));
+    f.push_back(absl::StrFormat("%.4f", a->verification.inlier_distance_d));
+  } else {
+    f.insert(f.end(), 7, std::string());
+  }
+  f.push_back(label);
+  return f;
+}
+
+// Runs the evaluation (this process's shard of it, when sharded) into a table.
+absl::StatusOr<EvalTable> RunTable(const EvalArgs& args, const EvaluationOptions& base,
+                                   const std::vector<Manifest>& manifests,
+                                   const std::optional<ShardSpec>& shard) {
+  EvalTable table;
+  table.header = HeaderFor(manifests);
+  ProgressPrinter progress;
+  for (std::size_t m = 0; m < manifests.size(); ++m) {
+    const Manifest& manifest = manifests[m];
+    const std::string& path = args.manifests[m];
     const auto without_start =
-        std::count_if(manifest->problems.begin(), manifest->problems.end(),
+        std::count_if(manifest.problems.begin(), manifest.problems.end(),
                       [](const RegistrationProblem& p) { return !p.initial.has_value(); });
     if (without_start > 0 && !Perturbs(args)) {
       std::fprintf(stderr,
@@ -163,16 +255,16 @@ int RunEval(const EvalArgs& args) {
                    "--perturb-* flag is given, so they start at the ground truth: their errors "
                    "only show how far a method drifts from it (give --perturb-angle and "
                    "--perturb-translation to start elsewhere)\n",
-                   path.c_str(), static_cast<long>(without_start), manifest->problems.size());
+                   path.c_str(), static_cast<long>(without_start), manifest.problems.size());
     }
-    for (const std::string& c : manifest->extra_columns) {
-      if (std::find(extra_columns.begin(), extra_columns.end(), c) == extra_columns.end()) {
-        extra_columns.push_back(c);
-      }
+    EvaluationOptions options = base;
+    if (shard) {
+      options.problems = ShardProblems(manifest, *shard);
+      if (options.problems.empty()) continue;  // none of this manifest's targets is ours
     }
     auto outcomes = RunEvaluation(
-        *manifest, options, [&](const ProblemOutcome& o, std::size_t done, std::size_t total) {
-          const RegistrationProblem& p = manifest->problems[o.problem_index];
+        manifest, options, [&](const ProblemOutcome& o, std::size_t done, std::size_t total) {
+          const RegistrationProblem& p = manifest.problems[o.problem_index];
           progress.Update(
               done, total,
               o.status.ok()
@@ -180,87 +272,137 @@ int RunEval(const EvalArgs& args) {
                   : absl::StrFormat("%s %s: ERROR %s", p.id, MethodName(o.method),
                                     std::string(o.status.message())));
         });
-    if (!outcomes.ok()) return Fail(outcomes.status());
+    if (!outcomes.ok()) return outcomes.status();
     for (const ProblemOutcome& o : *outcomes) {
-      const RegistrationProblem& p = manifest->problems[o.problem_index];
-      std::vector<std::string> f = {path, p.id, std::string(MethodName(o.method)), p.source_path,
-                                    p.target_path};
-      ++runs[o.method];
-      if (!o.status.ok()) {
-        ++errors[o.method];
-        failures.push_back(absl::StrFormat("mlsreg eval: %s (%s, %s): %s", p.id,
-                                           MethodName(o.method), path,
-                                           std::string(o.status.message())));
-        f.push_back(std::string(o.status.message()));
-        f.resize(std::size(kFixedColumns) - 1);
-      } else {
-        const RegistrationResult& r = o.result;
-        f.push_back("ok");
-        for (double v : {o.error.rmse_d}) f.push_back(absl::StrFormat("%.6g", v));
-        f.push_back(o.error.success ? "1" : "0");
-        f.push_back(absl::StrFormat("%.6g", o.error.rotation_deg));
-        f.push_back(absl::StrFormat("%.6g", o.error.translation_d));
-        f.push_back(absl::StrFormat("%.6g", o.initial_error.rmse_d));
-        f.push_back(absl::StrFormat("%d", r.iterations));
-        f.push_back(std::string(TerminationName(r.termination)));
-        f.push_back(r.converged ? "1" : "0");
-        f.push_back(absl::StrFormat("%.9g", r.sampling_distance));
-        for (double t : {r.timings.total, r.timings.preprocessing, r.timings.subsampling,
-                         r.timings.matching, r.timings.optimisation, o.target_build_seconds}) {
-          f.push_back(absl::StrFormat("%.6g", t));
-        }
-        for (double v : {r.mls_radius_d, r.target_noise_d, r.source_noise_d}) {
-          f.push_back(absl::StrFormat("%.4g", v));
-        }
-        f.push_back(TraceColumn(r, false));
-        f.push_back(TraceColumn(r, true));
-        f.push_back(JoinNumbers(o.trace_error_d));
-        f.push_back(absl::StrFormat("%.6g", o.initial_error.rotation_deg));
-        std::vector<double> initial;
-        for (int i = 0; i < 16; ++i) initial.push_back(o.initial(i / 4, i % 4));
-        f.push_back(JoinNumbers(initial, "%.10g"));
-        if (const std::optional<VerificationScore>& v = r.verification) {
-          f.push_back(v->verified() ? "1" : "0");
-          f.push_back(std::string(VerdictName(v->verdict)));
-          f.push_back(absl::StrFormat("%.4f", v->inlier_fraction));
-          f.push_back(absl::StrFormat("%.4f", v->explained_fraction));
-          f.push_back(absl::StrFormat("%.4f", v->worst_direction_fraction));
-          f.push_back(absl::StrFormat("%.4f", v->inlier_distance_d));
-        } else {
-          f.insert(f.end(), 6, std::string());
-        }
-        if (const std::optional<AutoReport>& a = r.auto_report; a && !a->candidates.empty()) {
-          f.push_back(absl::StrFormat("%d", a->chosen));
-          f.push_back(absl::StrFormat("%zu", a->candidates.size()));
-          f.push_back(a->early_exit ? "1" : "0");
-          f.push_back(absl::StrFormat("%.4f", a->candidates[0].score.inlier_fraction));
-          f.push_back(absl::StrFormat("%.4f", a->verification.inlier_fraction));
-          f.push_back(absl::StrFormat("%.4f", a->verification.rmse_d));
-          f.push_back(absl::StrFormat("%.4f", a->verification.inlier_distance_d));
-        } else {
-          f.insert(f.end(), 7, std::string());
-        }
-        rmse_by_method[o.method].push_back(o.error.rmse_d);
-        time_by_method[o.method].push_back(r.timings.total);
-        successes[o.method] += o.error.success;
-      }
-      f.push_back(args.label);
-      for (const std::string& c : extra_columns) {
+      const RegistrationProblem& p = manifest.problems[o.problem_index];
+      std::vector<std::string> row = OutcomeCells(path, p, o, args.label);
+      for (std::size_t c = std::size(kFixedColumns); c < table.header.size(); ++c) {
         std::string value;
         for (const auto& [name, v] : p.extra) {
-          if (name == c) value = v;
+          if (name == table.header[c]) value = v;
         }
-        f.push_back(value);
+        row.push_back(value);
       }
-      std::vector<std::string> quoted;
-      for (const std::string& s : f) quoted.push_back(CsvField(s));
-      rows.push_back(absl::StrJoin(quoted, ","));
+      table.rows.push_back(std::move(row));
     }
   }
+  return table;
+}
 
-  std::vector<std::string> header(std::begin(kFixedColumns), std::end(kFixedColumns));
-  header.insert(header.end(), extra_columns.begin(), extra_columns.end());
-  const std::string csv = absl::StrJoin(header, ",") + "\n" + absl::StrJoin(rows, "\n") + "\n";
+// Reads shard CSVs written by `eval --shard` with the same --pairs and --methods into the table
+// one run would have written: rows in manifest, problem and method order. FAILED_PRECONDITION
+// when a run is missing (a shard file is missing or incomplete) or appears twice.
+absl::StatusOr<EvalTable> MergeTable(const EvalArgs& args, const std::vector<Method>& methods,
+                                     const std::vector<Manifest>& manifests) {
+  EvalTable table;
+  table.header = HeaderFor(manifests);
+  // Slot (manifest m, problem i, method k) at (offset[m] + i) * methods + k.
+  std::vector<std::size_t> offset;
+  std::size_t problems = 0;
+  for (const Manifest& manifest : manifests) {
+    offset.push_back(problems);
+    problems += manifest.problems.size();
+  }
+  std::vector<std::vector<std::string>> slots(problems * methods.size());
+  std::vector<std::uint8_t> filled(slots.size(), 0);
+  for (const std::string& file : args.merge) {
+    std::ifstream in(file);
+    if (!in) return absl::NotFoundError("--merge: cannot read '" + file + "'");
+    std::string line;
+    std::vector<std::string> columns;
+    int line_number = 0;
+    while (std::getline(in, line)) {
+      ++line_number;
+      if (line.empty()) continue;
+      auto fields = SplitCsvLine(line);
+      if (!fields.ok()) {
+        return absl::InvalidArgumentError(absl::StrFormat("--merge: %s line %d: %s", file,
+                                                          line_number, fields.status().message()));
+      }
+      if (columns.empty()) {
+        columns = *std::move(fields);
+        for (const char* required : {"manifest", "id", "method"}) {
+          if (std::find(columns.begin(), columns.end(), required) == columns.end()) {
+            return absl::InvalidArgumentError(absl::StrFormat(
+                "--merge: %s is not an eval results CSV (no column '%s')", file, required));
+          }
+        }
+        continue;
+      }
+      auto cell = [&](std::string_view name) -> std::string {
+        const auto at = std::find(columns.begin(), columns.end(), name) - columns.begin();
+        return static_cast<std::size_t>(at) < fields->size() ? (*fields)[at] : std::string();
+      };
+      const std::string manifest_path = cell("manifest"), id = cell("id");
+      const auto m = std::find(args.manifests.begin(), args.manifests.end(), manifest_path) -
+                     args.manifests.begin();
+      auto method = ParseMethod(cell("method"));
+      const auto k = method.ok()
+                         ? std::find(methods.begin(), methods.end(), *method) - methods.begin()
+                         : static_cast<std::ptrdiff_t>(methods.size());
+      if (static_cast<std::size_t>(m) == args.manifests.size() ||
+          static_cast<std::size_t>(k) == methods.size()) {
+        return absl::InvalidArgumentError(absl::StrFormat(
+            "--merge: %s line %d: manifest '%s' and method '%s' must be among --pairs and "
+            "--methods (merge with the flags the shards ran with)",
+            file, line_number, manifest_path, cell("method")));
+      }
+      // The first problem with this id whose slot is free (ids may repeat).
+      const std::vector<RegistrationProblem>& list = manifests[m].problems;
+      std::size_t slot = slots.size();
+      bool duplicate = false;
+      for (std::size_t i = 0; i < list.size(); ++i) {
+        if (list[i].id != id) continue;
+        const std::size_t at = (offset[m] + i) * methods.size() + static_cast<std::size_t>(k);
+        if (!filled[at]) {
+          slot = at;
+          break;
+        }
+        duplicate = true;
+      }
+      if (slot == slots.size()) {
+        return absl::FailedPreconditionError(absl::StrFormat(
+            "--merge: %s line %d: %s %s of %s %s", file, line_number, id, cell("method"),
+            manifest_path,
+            duplicate ? "appears twice (the same shard given twice?)" : "is not in the manifest"));
+      }
+      std::vector<std::string> row;
+      for (const std::string& name : table.header) row.push_back(cell(name));
+      slots[slot] = std::move(row);
+      filled[slot] = 1;
+    }
+  }
+  std::vector<std::string> missing;
+  for (std::size_t m = 0; m < manifests.size(); ++m) {
+    for (std::size_t i = 0; i < manifests[m].problems.size(); ++i) {
+      for (std::size_t k = 0; k < methods.size(); ++k) {
+        if (!filled[(offset[m] + i) * methods.size() + k]) {
+          missing.push_back(
+              absl::StrCat(manifests[m].problems[i].id, " ", std::string(MethodName(methods[k]))));
+        }
+      }
+    }
+  }
+  if (!missing.empty()) {
+    const std::size_t shown = std::min<std::size_t>(missing.size(), 5);
+    return absl::FailedPreconditionError(absl::StrFormat(
+        "--merge: %zu of %zu runs are missing (%s%s): a shard's file is missing or incomplete",
+        missing.size(), slots.size(),
+        absl::StrJoin(missing.begin(), missing.begin() + static_cast<std::ptrdiff_t>(shown), ", "),
+        missing.size() > shown ? ", ..." : ""));
+  }
+  table.rows = std::move(slots);
+  return table;
+}
+
+// Writes the CSV, the failures, the summary and the JSON summary of `table`; the exit code.
+int Report(const EvalArgs& args, const std::vector<Method>& methods, const EvalTable& table) {
+  std::string csv = absl::StrJoin(table.header, ",") + "\n";
+  for (const std::vector<std::string>& row : table.rows) {
+    std::vector<std::string> quoted;
+    for (const std::string& s : row) quoted.push_back(CsvField(s));
+    csv += absl::StrJoin(quoted, ",") + "\n";
+  }
   if (args.out.empty() || args.out == "-") {
     std::fputs(csv.c_str(), stdout);
   } else {
@@ -269,18 +411,40 @@ int RunEval(const EvalArgs& args) {
     if (!out) return Fail(absl::UnavailableError("cannot write '" + args.out + "'"));
   }
 
+  const std::size_t manifest = table.Column("manifest"), id = table.Column("id"),
+                    method = table.Column("method"), status = table.Column("status"),
+                    rmse = table.Column("rmse_d"), success = table.Column("success"),
+                    time = table.Column("time_total_s");
+  std::map<std::string, std::vector<double>> rmse_by_method, time_by_method;
+  std::map<std::string, int> successes, runs, errors;
+  std::vector<std::string> failures;  // one line per run that could not run
+  for (const std::vector<std::string>& row : table.rows) {
+    const std::string& m = row[method];
+    ++runs[m];
+    if (row[status] != "ok") {
+      ++errors[m];
+      failures.push_back(
+          absl::StrFormat("mlsreg eval: %s (%s, %s): %s", row[id], m, row[manifest], row[status]));
+      continue;
+    }
+    double value = 0.0;
+    rmse_by_method[m].push_back(absl::SimpleAtod(row[rmse], &value) ? value : 0.0);
+    time_by_method[m].push_back(absl::SimpleAtod(row[time], &value) ? value : 0.0);
+    successes[m] += row[success] == "1";
+  }
+
   for (const std::string& line : failures) std::fprintf(stderr, "%s\n", line.c_str());
   std::FILE* summary = args.out.empty() || args.out == "-" ? stderr : stdout;
   std::fprintf(summary, "%-18s %5s %9s %7s %14s %14s %12s\n", "method", "runs", "success", "errors",
                "median RMSE/d", "mean RMSE/d", "median time");
-  for (Method m : options.methods) {
+  for (Method method_id : methods) {
+    const std::string m(MethodName(method_id));
     const std::vector<double>& e = rmse_by_method[m];
     double mean = 0.0;
     for (double v : e) mean += v;
     if (!e.empty()) mean /= static_cast<double>(e.size());
-    std::fprintf(summary, "%-18s %5d %4d/%-4d %7d %s %s %s\n", std::string(MethodName(m)).c_str(),
-                 runs[m], successes[m], runs[m], errors[m],
-                 Cell(e, absl::StrFormat("%.4f", Median(e)), 14).c_str(),
+    std::fprintf(summary, "%-18s %5d %4d/%-4d %7d %s %s %s\n", m.c_str(), runs[m], successes[m],
+                 runs[m], errors[m], Cell(e, absl::StrFormat("%.4f", Median(e)), 14).c_str(),
                  Cell(e, absl::StrFormat("%.4f", mean), 14).c_str(),
                  Cell(e, absl::StrFormat("%.3f s", Median(time_by_method[m])), 12).c_str());
   }
@@ -291,11 +455,12 @@ int RunEval(const EvalArgs& args) {
                  failures.size());
   }
   if (!args.json.empty()) {
-    nlohmann::json methods = nlohmann::json::array();
-    for (Method m : options.methods) {
+    nlohmann::json list = nlohmann::json::array();
+    for (Method method_id : methods) {
+      const std::string m(MethodName(method_id));
       const bool ran = !rmse_by_method[m].empty();
-      methods.push_back(
-          {{"method", std::string(MethodName(m))},
+      list.push_back(
+          {{"method", m},
            {"runs", runs[m]},
            {"successes", successes[m]},
            {"errors", errors[m]},
@@ -303,13 +468,61 @@ int RunEval(const EvalArgs& args) {
            {"median_time_s", ran ? nlohmann::json(Median(time_by_method[m])) : nullptr}});
     }
     std::ofstream out(args.json);
-    out << nlohmann::json{{"methods", methods}}.dump(2) << "\n";
+    out << nlohmann::json{{"methods", list}}.dump(2) << "\n";
     if (!out) return Fail(absl::UnavailableError("cannot write --json file '" + args.json + "'"));
   }
-  for (Method m : options.methods) {
+  for (Method method_id : methods) {
+    const std::string m(MethodName(method_id));
     if (successes[m] != runs[m]) return kExitMissed;
   }
   return kExitOk;
+}
+
+int RunEval(const EvalArgs& args) {
+  auto registration = args.flags.ToOptions();
+  if (!registration.ok()) return Fail(registration.status());
+  for (const auto& [flag, path] :
+       {std::pair{"--out", &args.out}, std::pair{"--json", &args.json}}) {
+    if (path->empty() || *path == "-") continue;
+    if (absl::Status s = CheckWritable(flag, *path); !s.ok()) return Fail(s);
+  }
+  auto methods = ParseMethods(args.methods);
+  if (!methods.ok()) return Fail(methods.status());
+  const bool sharded = !args.shard.empty() || args.shard_from_env > 0;
+  if (!args.merge.empty() && sharded) {
+    return Fail(absl::InvalidArgumentError("--merge combines shards: give it without --shard"));
+  }
+  if (!args.shard.empty() && args.shard_from_env > 0) {
+    return Fail(absl::InvalidArgumentError("give --shard or --shard-from-env, not both"));
+  }
+  std::optional<ShardSpec> shard;
+  if (!args.shard.empty()) {
+    auto parsed = ParseShard(args.shard);
+    if (!parsed.ok()) return Fail(parsed.status());
+    shard = *parsed;
+  } else if (args.shard_from_env > 0) {
+    auto parsed = ShardFromEnvironment(args.shard_from_env);
+    if (!parsed.ok()) return Fail(parsed.status());
+    shard = *parsed;
+  }
+  auto manifests = ReadManifests(args);
+  if (!manifests.ok()) return Fail(manifests.status());
+
+  absl::StatusOr<EvalTable> table;
+  if (!args.merge.empty()) {
+    table = MergeTable(args, *methods, *manifests);
+  } else {
+    EvaluationOptions options;
+    options.registration = *registration;
+    options.perturbation = {args.angle_deg, args.translation_d, args.perturb_seed,
+                            args.uniform_rotation, args.translation_max_d};
+    options.jobs = args.jobs;
+    options.threads = args.threads;
+    options.methods = *methods;
+    table = RunTable(args, options, *manifests, shard);
+  }
+  if (!table.ok()) return Fail(table.status());
+  return Report(args, *methods, *table);
 }
 
 }  // namespace
@@ -343,6 +556,18 @@ CommandRunner AddEvalCommand(CLI::App& app) {
                   "depend on it)")
       ->capture_default_str()
       ->check(CLI::Range(1, 256));
+  cmd->add_option("--shard", args->shard,
+                  "run only shard i of N (i/N, 0 <= i < N): whole targets, dealt so that the N "
+                  "shards have about as many problems each; merge the shards' --out files "
+                  "with --merge");
+  cmd->add_option("--shard-from-env", args->shard_from_env,
+                  "run shard i of this many, i from $JOB_COMPLETION_INDEX (a Kubernetes Indexed "
+                  "Job's pod index)")
+      ->check(CLI::Range(1, kMaxShards));
+  cmd->add_option("--merge", args->merge,
+                  "instead of running, merge these shard CSVs (from --shard runs with the same "
+                  "--pairs and --methods) into the CSV, summary and --json one run writes")
+      ->expected(1, -1);
   args->flags.AddTo(*cmd, /*method_flag=*/false);
   return [args] { return RunEval(*args); };
 }

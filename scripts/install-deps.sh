@@ -11,7 +11,7 @@ packages=(
   libcli11-dev nlohmann-json3-dev libembree-dev libssl-dev
   clang-14 libclang-rt-14-dev
   python3 python3-yaml python3-matplotlib
-  python3-dev pybind11-dev python3-numpy python3-pytest
+  python3-dev pybind11-dev python3-numpy python3-pytest python3-dask python3-distributed
   libcivetweb-dev libceres-dev
 )
 

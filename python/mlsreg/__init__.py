@@ -17,6 +17,9 @@ for ``-``, such as ``tau_n``), with its defaults and ranges.
 Remote registration goes through ``mlsreg.Client`` (the C++ client library: retries, replica
 routing, chunked uploads).
 
+Batches on a Dask cluster: ``mlsreg.dask.register_many(pairs, client)`` (each target built once
+per worker; Dask is imported only there).
+
 Errors: bad input raises ValueError with the library's message; a missing file
 FileNotFoundError; an unknown target LookupError; everything else mlsreg.Error (``.code`` is the
 status code's name).
@@ -49,7 +52,16 @@ __version__ = "0.1.0"
 
 def __dir__():
     """The package's API only (not the modules it imports, such as numpy and json)."""
-    return sorted(__all__ + ["__version__"])
+    return sorted(__all__ + ["__version__", "dask"])
+
+
+def __getattr__(name: str):
+    """``mlsreg.dask`` (batches on a Dask cluster) is imported on first use, and it imports Dask
+    only when it runs on a cluster: ``import mlsreg`` works without Dask installed."""
+    if name == "dask":
+        import importlib
+        return importlib.import_module(".dask", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 @dataclasses.dataclass

@@ -151,14 +151,22 @@ Matrix4 PerturbedStart(const PointCloud& source, const Matrix4& initial, double 
 absl::StatusOr<std::vector<ProblemOutcome>> RunEvaluation(
     const Manifest& manifest, const EvaluationOptions& options,
     const std::function<void(const ProblemOutcome&, std::size_t, std::size_t)>& on_done) {
-  for (const RegistrationProblem& problem : manifest.problems) {
-    if (!problem.ground_truth) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("problem '", problem.id, "' has no ground truth (column gt)"));
+  std::vector<std::size_t> problems = options.problems;
+  if (problems.empty()) {
+    for (std::size_t i = 0; i < manifest.problems.size(); ++i) problems.push_back(i);
+  }
+  for (std::size_t index : problems) {
+    if (index >= manifest.problems.size()) {
+      return absl::InvalidArgumentError(absl::StrCat("problem index ", index, " is out of range (",
+                                                     manifest.problems.size(), " problems)"));
+    }
+    if (!manifest.problems[index].ground_truth) {
+      return absl::InvalidArgumentError(absl::StrCat("problem '", manifest.problems[index].id,
+                                                     "' has no ground truth (column gt)"));
     }
   }
   const std::size_t methods = options.methods.size();
-  const std::size_t total = manifest.problems.size() * methods;
+  const std::size_t total = problems.size() * methods;
   std::vector<ProblemOutcome> outcomes(total);
   CloudCache cache;
   std::atomic<std::size_t> next{0};
@@ -166,7 +174,7 @@ absl::StatusOr<std::vector<ProblemOutcome>> RunEvaluation(
   std::size_t done = 0;
   auto worker = [&] {
     for (std::size_t task = next++; task < total; task = next++) {
-      const std::size_t index = task / methods;
+      const std::size_t index = problems[task / methods];
       outcomes[task] =
           RunOne(manifest.problems[index], index, options.methods[task % methods], options, cache);
       std::lock_guard<std::mutex> lock(report_mutex);

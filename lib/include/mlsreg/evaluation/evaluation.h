@@ -46,6 +46,9 @@ struct EvaluationOptions {
   PerturbationProtocol perturbation;
   int jobs = 1;     // registrations run in parallel
   int threads = 1;  // threads inside each registration and target build (ExecutionOptions)
+  // The indices of the manifest's problems to run (a shard, evaluation/shard.h), ascending;
+  // empty: all. A problem keeps its index, and so its perturbed start, in any subset.
+  std::vector<std::size_t> problems;
 };
 
 struct ProblemOutcome {
@@ -60,9 +63,10 @@ struct ProblemOutcome {
   double target_build_seconds = 0.0;
 };
 
-// Runs every (problem, method) pair; `on_done` (may be empty) is called from worker threads,
-// serialised, after each run. Outcomes come back ordered by problem, then by method. Fails only
-// for a manifest problem without ground truth.
+// Runs every (problem, method) pair (of options.problems when given); `on_done` (may be empty)
+// is called from worker threads, serialised, after each run. Outcomes come back ordered by
+// problem, then by method. Fails for a manifest problem without ground truth and for a problem
+// index out of range.
 absl::StatusOr<std::vector<ProblemOutcome>> RunEvaluation(
     const Manifest& manifest, const EvaluationOptions& options,
     const std::function<void(const ProblemOutcome&, std::size_t done, std::size_t total)>& on_done =
