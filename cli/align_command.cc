@@ -39,11 +39,6 @@ struct AlignArgs {
   ConnectionFlags connection;
 };
 
-int Fail(const absl::Status& status) {
-  std::fprintf(stderr, "mlsreg align: %s\n", std::string(status.message()).c_str());
-  return status.code() == absl::StatusCode::kInvalidArgument ? kExitBadInput : kExitFailed;
-}
-
 std::string Name(const std::string& path) {
   const std::size_t slash = path.find_last_of('/');
   return slash == std::string::npos ? path : path.substr(slash + 1);
@@ -57,33 +52,36 @@ nlohmann::json Row(const Matrix4& m) {
 
 int RunAlign(const AlignArgs& args) {
   auto edge_options = args.flags.ToOptions();
-  if (!edge_options.ok()) return Fail(edge_options.status());
+  if (!edge_options.ok()) return ExitFor("align", edge_options.status());
   auto policy = ParseEnum<PairPolicy>(PairPolicyNames(), args.pairs, "--pairs");
-  if (!policy.ok()) return Fail(policy.status());
+  if (!policy.ok()) return ExitFor("align", policy.status());
   const bool remote = args.connection.has_server();
   if (args.cached && !remote) {
-    return Fail(absl::InvalidArgumentError("--cached names targets on a server: give --server"));
+    return ExitFor("align",
+                   absl::InvalidArgumentError("--cached names targets on a server: give --server"));
   }
   if (args.resample && args.merged.empty()) {
-    return Fail(
-        absl::InvalidArgumentError("--resample resamples the --merged cloud: give --merged"));
+    return ExitFor("align", absl::InvalidArgumentError(
+                                "--resample resamples the --merged cloud: give --merged"));
   }
   if (args.cached && (!args.merged.empty() || !args.gt.empty())) {
-    return Fail(absl::InvalidArgumentError(
-        "--merged and --gt need the scans' clouds: give files, not --cached ids"));
+    return ExitFor("align",
+                   absl::InvalidArgumentError(
+                       "--merged and --gt need the scans' clouds: give files, not --cached ids"));
   }
   if (!args.merged.empty()) {
-    if (absl::Status s = CheckCloudOutput("--merged", args.merged); !s.ok()) return Fail(s);
+    if (absl::Status s = CheckCloudOutput("--merged", args.merged); !s.ok())
+      return ExitFor("align", s);
   }
   for (const auto& [flag, path] :
        {std::pair{"--out", &args.out}, std::pair{"--json", &args.json}}) {
     if (path->empty()) continue;
-    if (absl::Status s = CheckWritable(flag, *path); !s.ok()) return Fail(s);
+    if (absl::Status s = CheckWritable(flag, *path); !s.ok()) return ExitFor("align", s);
   }
   std::vector<PointCloud> scans;
   for (const std::string& path : args.cached ? std::vector<std::string>{} : args.scans) {
     auto cloud = ReadCloudNoting("align", path);
-    if (!cloud.ok()) return Fail(cloud.status());
+    if (!cloud.ok()) return ExitFor("align", cloud.status());
     scans.push_back(*std::move(cloud));
   }
   AlignOptions options;
@@ -95,13 +93,13 @@ int RunAlign(const AlignArgs& args) {
   options.threads = std::max(1, args.threads);
   if (!args.poses.empty()) {
     auto poses = ReadPoses(args.poses, args.scans);
-    if (!poses.ok()) return Fail(poses.status());
+    if (!poses.ok()) return ExitFor("align", poses.status());
     options.initial_poses = *std::move(poses);
   }
   std::vector<Matrix4> truth;
   if (!args.gt.empty()) {
     auto poses = ReadPoses(args.gt, args.scans);
-    if (!poses.ok()) return Fail(poses.status());
+    if (!poses.ok()) return ExitFor("align", poses.status());
     truth = *std::move(poses);
   }
   if (remote) {
@@ -124,7 +122,7 @@ int RunAlign(const AlignArgs& args) {
   absl::StatusOr<AlignResult> result;
   if (remote) {
     auto client = args.connection.Connect();
-    if (!client.ok()) return Fail(client.status());
+    if (!client.ok()) return ExitFor("align", client.status());
     std::vector<client::RemoteScan> remote_scans;
     for (std::size_t i = 0; i < args.scans.size(); ++i) {
       client::RemoteScan scan;
@@ -136,7 +134,7 @@ int RunAlign(const AlignArgs& args) {
       remote_scans.push_back(std::move(scan));
     }
     auto aligned = (*client)->AlignScans(remote_scans, options, print_edge);
-    if (!aligned.ok()) return Fail(aligned.status());
+    if (!aligned.ok()) return ExitFor("align", aligned.status());
     std::printf("request %s, queued %.3f s\n", aligned->request_id.c_str(), aligned->queue_seconds);
     result = std::move(aligned->result);
   } else {
@@ -144,7 +142,7 @@ int RunAlign(const AlignArgs& args) {
     callbacks.on_edge = print_edge;
     result = AlignScans(scans, options, callbacks);
   }
-  if (!result.ok()) return Fail(result.status());
+  if (!result.ok()) return ExitFor("align", result.status());
 
   std::printf("\nedges (disagreement with the optimised poses, units of d = %.6g):\n",
               result->sampling_distance);
@@ -189,7 +187,8 @@ int RunAlign(const AlignArgs& args) {
   std::printf("aligned in %.2f s (%d pose-graph iterations)\n", result->seconds,
               result->graph_iterations);
   if (!args.out.empty()) {
-    if (absl::Status s = WritePoses(args.out, result->poses, args.scans); !s.ok()) return Fail(s);
+    if (absl::Status s = WritePoses(args.out, result->poses, args.scans); !s.ok())
+      return ExitFor("align", s);
   }
   if (!args.merged.empty()) {
     PointCloud merged = MergeScans(scans, result->poses);
@@ -197,7 +196,7 @@ int RunAlign(const AlignArgs& args) {
       SurfaceResampling resampling = args.resampling;
       resampling.threads = std::max(1, args.threads);
       auto resampled = ResampleOnMlsSurface(merged, result->sampling_distance, resampling);
-      if (!resampled.ok()) return Fail(resampled.status());
+      if (!resampled.ok()) return ExitFor("align", resampled.status());
       std::printf(
           "merged cloud resampled onto the joint MLS surface: %zu points of %zu (radius %.1f d, "
           "noise %.2f d, %d dropped) in %.2f s\n",
@@ -205,7 +204,7 @@ int RunAlign(const AlignArgs& args) {
           resampled->dropped, resampled->seconds);
       merged = std::move(resampled->cloud);
     }
-    if (absl::Status s = WritePointCloud(merged, args.merged); !s.ok()) return Fail(s);
+    if (absl::Status s = WritePointCloud(merged, args.merged); !s.ok()) return ExitFor("align", s);
   }
   if (!args.json.empty()) {
     nlohmann::json j;
@@ -246,7 +245,9 @@ int RunAlign(const AlignArgs& args) {
     }
     std::ofstream out(args.json);
     out << j.dump(2) << "\n";
-    if (!out) return Fail(absl::UnavailableError("cannot write --json file '" + args.json + "'"));
+    if (!out)
+      return ExitFor("align",
+                     absl::UnavailableError("cannot write --json file '" + args.json + "'"));
   }
   if (!result->unverified_scans.empty()) {
     std::string names;

@@ -48,16 +48,21 @@ struct EvalArgs {
   RegistrationFlags flags;
 };
 
-int Fail(const absl::Status& status) {
-  std::fprintf(stderr, "mlsreg eval: %s\n", std::string(status.message()).c_str());
-  return status.code() == absl::StatusCode::kInvalidArgument ? kExitBadInput : kExitFailed;
-}
-
 double Median(std::vector<double> v) {
   if (v.empty()) return 0.0;
   std::sort(v.begin(), v.end());
   const std::size_t n = v.size();
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// The 90th percentile, linearly interpolated between the order statistics (numpy's default).
+double Percentile90(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const double at = 0.9 * static_cast<double>(v.size() - 1);
+  const std::size_t below = static_cast<std::size_t>(at);
+  const double above = below + 1 < v.size() ? v[below + 1] : v[below];
+  return v[below] + (at - static_cast<double>(below)) * (above - v[below]);
 }
 
 std::string JoinNumbers(const std::vector<double>& values,
@@ -408,7 +413,7 @@ int Report(const EvalArgs& args, const std::vector<Method>& methods, const EvalT
   } else {
     std::ofstream out(args.out);
     out << csv;
-    if (!out) return Fail(absl::UnavailableError("cannot write '" + args.out + "'"));
+    if (!out) return ExitFor("eval", absl::UnavailableError("cannot write '" + args.out + "'"));
   }
 
   const std::size_t manifest = table.Column("manifest"), id = table.Column("id"),
@@ -435,17 +440,18 @@ int Report(const EvalArgs& args, const std::vector<Method>& methods, const EvalT
 
   for (const std::string& line : failures) std::fprintf(stderr, "%s\n", line.c_str());
   std::FILE* summary = args.out.empty() || args.out == "-" ? stderr : stdout;
-  std::fprintf(summary, "%-18s %5s %9s %7s %14s %14s %12s\n", "method", "runs", "success", "errors",
-               "median RMSE/d", "mean RMSE/d", "median time");
+  std::fprintf(summary, "%-18s %5s %9s %7s %14s %14s %14s %12s\n", "method", "runs", "success",
+               "errors", "median RMSE/d", "mean RMSE/d", "90th pct", "median time");
   for (Method method_id : methods) {
     const std::string m(MethodName(method_id));
     const std::vector<double>& e = rmse_by_method[m];
     double mean = 0.0;
     for (double v : e) mean += v;
     if (!e.empty()) mean /= static_cast<double>(e.size());
-    std::fprintf(summary, "%-18s %5d %4d/%-4d %7d %s %s %s\n", m.c_str(), runs[m], successes[m],
+    std::fprintf(summary, "%-18s %5d %4d/%-4d %7d %s %s %s %s\n", m.c_str(), runs[m], successes[m],
                  runs[m], errors[m], Cell(e, absl::StrFormat("%.4f", Median(e)), 14).c_str(),
                  Cell(e, absl::StrFormat("%.4f", mean), 14).c_str(),
+                 Cell(e, absl::StrFormat("%.4f", Percentile90(e)), 14).c_str(),
                  Cell(e, absl::StrFormat("%.3f s", Median(time_by_method[m])), 12).c_str());
   }
   if (!failures.empty()) {
@@ -465,11 +471,14 @@ int Report(const EvalArgs& args, const std::vector<Method>& methods, const EvalT
            {"successes", successes[m]},
            {"errors", errors[m]},
            {"median_rmse_d", ran ? nlohmann::json(Median(rmse_by_method[m])) : nullptr},
+           {"p90_rmse_d", ran ? nlohmann::json(Percentile90(rmse_by_method[m])) : nullptr},
            {"median_time_s", ran ? nlohmann::json(Median(time_by_method[m])) : nullptr}});
     }
     std::ofstream out(args.json);
     out << nlohmann::json{{"methods", list}}.dump(2) << "\n";
-    if (!out) return Fail(absl::UnavailableError("cannot write --json file '" + args.json + "'"));
+    if (!out)
+      return ExitFor("eval",
+                     absl::UnavailableError("cannot write --json file '" + args.json + "'"));
   }
   for (Method method_id : methods) {
     const std::string m(MethodName(method_id));
@@ -480,33 +489,35 @@ int Report(const EvalArgs& args, const std::vector<Method>& methods, const EvalT
 
 int RunEval(const EvalArgs& args) {
   auto registration = args.flags.ToOptions();
-  if (!registration.ok()) return Fail(registration.status());
+  if (!registration.ok()) return ExitFor("eval", registration.status());
   for (const auto& [flag, path] :
        {std::pair{"--out", &args.out}, std::pair{"--json", &args.json}}) {
     if (path->empty() || *path == "-") continue;
-    if (absl::Status s = CheckWritable(flag, *path); !s.ok()) return Fail(s);
+    if (absl::Status s = CheckWritable(flag, *path); !s.ok()) return ExitFor("eval", s);
   }
   auto methods = ParseMethods(args.methods);
-  if (!methods.ok()) return Fail(methods.status());
+  if (!methods.ok()) return ExitFor("eval", methods.status());
   const bool sharded = !args.shard.empty() || args.shard_from_env > 0;
   if (!args.merge.empty() && sharded) {
-    return Fail(absl::InvalidArgumentError("--merge combines shards: give it without --shard"));
+    return ExitFor("eval",
+                   absl::InvalidArgumentError("--merge combines shards: give it without --shard"));
   }
   if (!args.shard.empty() && args.shard_from_env > 0) {
-    return Fail(absl::InvalidArgumentError("give --shard or --shard-from-env, not both"));
+    return ExitFor("eval",
+                   absl::InvalidArgumentError("give --shard or --shard-from-env, not both"));
   }
   std::optional<ShardSpec> shard;
   if (!args.shard.empty()) {
     auto parsed = ParseShard(args.shard);
-    if (!parsed.ok()) return Fail(parsed.status());
+    if (!parsed.ok()) return ExitFor("eval", parsed.status());
     shard = *parsed;
   } else if (args.shard_from_env > 0) {
     auto parsed = ShardFromEnvironment(args.shard_from_env);
-    if (!parsed.ok()) return Fail(parsed.status());
+    if (!parsed.ok()) return ExitFor("eval", parsed.status());
     shard = *parsed;
   }
   auto manifests = ReadManifests(args);
-  if (!manifests.ok()) return Fail(manifests.status());
+  if (!manifests.ok()) return ExitFor("eval", manifests.status());
 
   absl::StatusOr<EvalTable> table;
   if (!args.merge.empty()) {
@@ -521,7 +532,7 @@ int RunEval(const EvalArgs& args) {
     options.methods = *methods;
     table = RunTable(args, options, *manifests, shard);
   }
-  if (!table.ok()) return Fail(table.status());
+  if (!table.ok()) return ExitFor("eval", table.status());
   return Report(args, *methods, *table);
 }
 

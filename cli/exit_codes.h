@@ -2,8 +2,12 @@
 // docs/cli.md).
 #pragma once
 
+#include <cstdio>
 #include <span>
+#include <string>
 #include <string_view>
+
+#include "absl/status/status.h"
 
 namespace mlsreg::cli {
 
@@ -12,6 +16,14 @@ inline constexpr int kExitFailed = 1;       // I/O, server, internal error; a fa
 inline constexpr int kExitBadInput = 2;     // bad arguments or input (INVALID_ARGUMENT)
 inline constexpr int kExitMissed = 3;       // eval: some run failed or missed 5 d
 inline constexpr int kExitNotVerified = 4;  // register, verify, align: the result does not verify
+
+// Prints "mlsreg COMMAND: MESSAGE" to stderr and returns the exit code of `status`: bad input
+// (INVALID_ARGUMENT) 2, anything else 1.
+inline int ExitFor(std::string_view command, const absl::Status& status) {
+  std::fprintf(stderr, "mlsreg %s: %s\n", std::string(command).c_str(),
+               std::string(status.message()).c_str());
+  return status.code() == absl::StatusCode::kInvalidArgument ? kExitBadInput : kExitFailed;
+}
 
 struct ExitCode {
   int code;

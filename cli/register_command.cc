@@ -35,11 +35,6 @@ struct RegisterArgs {
   ConnectionFlags connection;
 };
 
-int Fail(const absl::Status& status) {
-  std::fprintf(stderr, "mlsreg register: %s\n", std::string(status.message()).c_str());
-  return status.code() == absl::StatusCode::kInvalidArgument ? kExitBadInput : kExitFailed;
-}
-
 void PrintIteration(const IterationReport& r) {
   std::printf("%s\n", FormatIteration(r).c_str());
   std::fflush(stdout);
@@ -60,13 +55,15 @@ int Finish(const RegisterArgs& args, const RegistrationOptions& options,
   if (!args.json.empty()) {
     std::ofstream out(args.json);
     out << ResultJson(MethodName(options.method), result, error).dump(2) << "\n";
-    if (!out) return Fail(absl::UnavailableError("cannot write --json file '" + args.json + "'"));
+    if (!out)
+      return ExitFor("register",
+                     absl::UnavailableError("cannot write --json file '" + args.json + "'"));
   }
   if (!args.plot.empty()) {
     if (absl::Status s =
             WriteConvergencePlot(args.plot, MethodName(options.method), result, source, truth);
         !s.ok()) {
-      return Fail(s);
+      return ExitFor("register", s);
     }
   }
   if (result.verification && !result.verification->verified() &&
@@ -80,10 +77,10 @@ int Finish(const RegisterArgs& args, const RegistrationOptions& options,
 int RunRemote(const RegisterArgs& args, const RegistrationOptions& options,
               const PointCloud& source, Matrix4 initial, const std::optional<Matrix4>& truth) {
   auto client = args.connection.Connect();
-  if (!client.ok()) return Fail(client.status());
+  if (!client.ok()) return ExitFor("register", client.status());
   if (args.perturb_angle != 0.0 || args.perturb_translation != 0.0) {
     auto target = (*client)->GetTarget(args.target);
-    if (!target.ok()) return Fail(target.status());
+    if (!target.ok()) return ExitFor("register", target.status());
     initial = Perturbed(args, source, initial, target->sampling_distance);
   }
   if (!args.quiet) {
@@ -94,7 +91,7 @@ int RunRemote(const RegisterArgs& args, const RegistrationOptions& options,
   std::function<void(const IterationReport&)> on_progress;
   if (!args.quiet) on_progress = PrintIteration;
   auto remote = (*client)->Register(args.target, source, initial, options, truth, on_progress);
-  if (!remote.ok()) return Fail(remote.status());
+  if (!remote.ok()) return ExitFor("register", remote.status());
   std::printf(
       "%s",
       FormatResult(remote->result, remote->ground_truth_error, options.max_iterations).c_str());
@@ -138,35 +135,37 @@ absl::Status CheckArguments(const RegisterArgs& args) {
 
 int RunRegister(const RegisterArgs& args) {
   auto options = args.flags.ToOptions();
-  if (!options.ok()) return Fail(options.status());
-  if (absl::Status s = CheckArguments(args); !s.ok()) return Fail(s);
+  if (!options.ok()) return ExitFor("register", options.status());
+  if (absl::Status s = CheckArguments(args); !s.ok()) return ExitFor("register", s);
   Matrix4 initial = Matrix4::Identity();
   if (!args.init.empty()) {
     auto m = ParseTransform(args.init, "--init");
-    if (!m.ok()) return Fail(m.status());
+    if (!m.ok()) return ExitFor("register", m.status());
     initial = *m;
   }
   std::optional<Matrix4> truth;
   if (!args.gt.empty()) {
     auto m = ParseTransform(args.gt, "--gt");
-    if (!m.ok()) return Fail(m.status());
+    if (!m.ok()) return ExitFor("register", m.status());
     truth = *m;
   }
   auto source = ReadCloudNoting("register", args.source, args.columns);
-  if (!source.ok()) return Fail(source.status());
+  if (!source.ok()) return ExitFor("register", source.status());
   if (args.connection.has_server()) {
     if (!args.aligned.empty() || !args.merged.empty()) {
-      return Fail(absl::InvalidArgumentError(
-          "--aligned and --merged need the target's cloud: register locally (no --server)"));
+      return ExitFor(
+          "register",
+          absl::InvalidArgumentError(
+              "--aligned and --merged need the target's cloud: register locally (no --server)"));
     }
     return RunRemote(args, *options, *source, initial, truth);
   }
   auto target_cloud = ReadCloudNoting("register", args.target, args.columns);
-  if (!target_cloud.ok()) return Fail(target_cloud.status());
+  if (!target_cloud.ok()) return ExitFor("register", target_cloud.status());
   TargetOptions target_options;
   target_options.threads = args.threads;
   auto target = Target::Build(*std::move(target_cloud), target_options);
-  if (!target.ok()) return Fail(target.status());
+  if (!target.ok()) return ExitFor("register", target.status());
   initial = Perturbed(args, *source, initial, (*target)->sampling_distance());
   if (!args.quiet) {
     std::printf("%s: source %zu points, target %zu points, d = %.6g, target prepared in %.3f s\n",
@@ -178,7 +177,7 @@ int RunRegister(const RegisterArgs& args) {
   if (!args.quiet) callbacks.on_iteration = PrintIteration;
   auto result =
       Register(**target, *source, initial, *options, callbacks, ExecutionOptions{args.threads});
-  if (!result.ok()) return Fail(result.status());
+  if (!result.ok()) return ExitFor("register", result.status());
   std::optional<PoseError> error;
   if (truth) {
     error = EvaluatePose(source->points, result->transform, *truth, result->sampling_distance);
@@ -187,13 +186,13 @@ int RunRegister(const RegisterArgs& args) {
   if (!args.aligned.empty()) {
     if (absl::Status s = WriteAlignedCloud(args.aligned, *source, result->transform, **target);
         !s.ok()) {
-      return Fail(s);
+      return ExitFor("register", s);
     }
   }
   if (!args.merged.empty()) {
     if (absl::Status s = WriteMergedCloud(args.merged, *source, result->transform, **target);
         !s.ok()) {
-      return Fail(s);
+      return ExitFor("register", s);
     }
   }
   return Finish(args, *options, *result, error, *source, truth);

@@ -14,7 +14,7 @@
 namespace mlsreg::cli {
 namespace {
 
-int Fail(const char* command, const absl::Status& status) {
+int ServiceFail(const char* command, const absl::Status& status) {
   std::fprintf(stderr, "mlsreg %s: %s: %s\n", command,
                absl::StatusCodeToString(status.code()).c_str(),
                std::string(status.message()).c_str());
@@ -74,23 +74,23 @@ CommandRunner AddTargetsCommand(CLI::App& app) {
   }
   return [args, upload, get, list, remove]() -> int {
     auto client = args->connection.Connect();
-    if (!client.ok()) return Fail("targets", client.status());
+    if (!client.ok()) return ServiceFail("targets", client.status());
     if (upload->parsed()) {
       if (absl::Status s = CheckColumnsApply(args->columns, {args->file}); !s.ok()) {
-        return Fail("targets upload", s);
+        return ServiceFail("targets upload", s);
       }
       auto cloud = ReadCloudNoting("targets upload", args->file, args->columns);
-      if (!cloud.ok()) return Fail("targets upload", cloud.status());
+      if (!cloud.ok()) return ServiceFail("targets upload", cloud.status());
       auto info = (*client)->UploadTarget(args->id, *cloud);
-      if (!info.ok()) return Fail("targets upload", info.status());
+      if (!info.ok()) return ServiceFail("targets upload", info.status());
       args->json ? (void)std::printf("%s\n", TargetJson(*info).dump().c_str()) : PrintTarget(*info);
     } else if (get->parsed()) {
       auto info = (*client)->GetTarget(args->id);
-      if (!info.ok()) return Fail("targets get", info.status());
+      if (!info.ok()) return ServiceFail("targets get", info.status());
       args->json ? (void)std::printf("%s\n", TargetJson(*info).dump().c_str()) : PrintTarget(*info);
     } else if (list->parsed()) {
       auto all = (*client)->ListTargets();
-      if (!all.ok()) return Fail("targets list", all.status());
+      if (!all.ok()) return ServiceFail("targets list", all.status());
       if (args->json) {
         nlohmann::json targets = nlohmann::json::array();
         for (const TargetInfo& t : *all) targets.push_back(TargetJson(t));
@@ -101,7 +101,7 @@ CommandRunner AddTargetsCommand(CLI::App& app) {
       }
     } else if (remove->parsed()) {
       if (absl::Status s = (*client)->DeleteTarget(args->id); !s.ok()) {
-        return Fail("targets delete", s);
+        return ServiceFail("targets delete", s);
       }
       std::printf("deleted %s\n", args->id.c_str());
     }
@@ -118,13 +118,13 @@ CommandRunner AddHealthCommand(CLI::App& app) {
   cmd->add_flag("--json", *json, "print one JSON object per server");
   return [connection, json]() -> int {
     auto client = connection->Connect();
-    if (!client.ok()) return Fail("health", client.status());
+    if (!client.ok()) return ServiceFail("health", client.status());
     const std::vector<std::string> replicas = (*client)->replicas();
     bool all_serving = true;
     for (std::size_t i = 0; i < replicas.size(); ++i) {
       auto health = (*client)->Health(i);
       if (!health.ok()) {
-        Fail("health", health.status());
+        ServiceFail("health", health.status());
         all_serving = false;
         continue;
       }
@@ -150,11 +150,11 @@ CommandRunner AddStatsCommand(CLI::App& app) {
   connection->AddTo(*cmd, true);
   return [connection]() -> int {
     auto client = connection->Connect();
-    if (!client.ok()) return Fail("stats", client.status());
+    if (!client.ok()) return ServiceFail("stats", client.status());
     const std::vector<std::string> replicas = (*client)->replicas();
     for (std::size_t i = 0; i < replicas.size(); ++i) {
       auto json = (*client)->StatsJson(i);
-      if (!json.ok()) return Fail("stats", json.status());
+      if (!json.ok()) return ServiceFail("stats", json.status());
       if (replicas.size() > 1) std::printf("== %s\n", replicas[i].c_str());
       std::printf("%s\n", json->c_str());
     }

@@ -20,28 +20,25 @@ struct VerifyArgs {
   int threads = HardwareThreads();
 };
 
-int Fail(const absl::Status& status) {
-  std::fprintf(stderr, "mlsreg verify: %s\n", std::string(status.message()).c_str());
-  return status.code() == absl::StatusCode::kInvalidArgument ? kExitBadInput : kExitFailed;
-}
-
 int RunVerify(const VerifyArgs& args) {
   auto transform = ParseTransform(args.transform, "--transform");
-  if (!transform.ok()) return Fail(transform.status());
+  if (!transform.ok()) return ExitFor("verify", transform.status());
   auto source = ReadPointCloud(args.source);
-  if (!source.ok()) return Fail(source.status());
+  if (!source.ok()) return ExitFor("verify", source.status());
   auto target_cloud = ReadPointCloud(args.target);
-  if (!target_cloud.ok()) return Fail(target_cloud.status());
+  if (!target_cloud.ok()) return ExitFor("verify", target_cloud.status());
   TargetOptions options;
   options.threads = args.threads;
   auto target = Target::Build(*std::move(target_cloud), options);
-  if (!target.ok()) return Fail(target.status());
+  if (!target.ok()) return ExitFor("verify", target.status());
   const VerificationScore score = VerifyPose(**target, *source, *transform, args.threads);
   std::printf("%s\n", FormatVerification(score).c_str());
   if (!args.json.empty()) {
     std::ofstream out(args.json);
     out << VerificationJson(score).dump(2) << "\n";
-    if (!out) return Fail(absl::UnavailableError("cannot write --json file '" + args.json + "'"));
+    if (!out)
+      return ExitFor("verify",
+                     absl::UnavailableError("cannot write --json file '" + args.json + "'"));
   }
   return score.verified() ? kExitOk : kExitNotVerified;
 }

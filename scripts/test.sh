@@ -2,7 +2,7 @@
 # The whole test suite, what CI runs:
 #   1. Release build (gcc) and every test with CTest: unit, service, cluster, end-to-end.
 #   2. ASan + UBSan build (clang): the unit and service tests (the abuse suite among them), then
-#      every libFuzzer target for FUZZ_SECONDS (default 20) on a seed corpus from the test data.
+#      every libFuzzer target for FUZZ_SECONDS (default 15) on a seed corpus from the test data.
 #   3. TSan build (clang): the service and cluster tests.
 # SANITIZERS=0 runs stage 1 only (the quick local loop).
 # Trees configured here from scratch are unity builds (CMAKE_UNITY_BUILD: a few sources per
@@ -12,7 +12,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD_DIR=${BUILD_DIR:-build}
 JOBS=${JOBS:-$(nproc)}
-FUZZ_SECONDS=${FUZZ_SECONDS:-20}
+FUZZ_SECONDS=${FUZZ_SECONDS:-15}
 stage() { echo; echo "==== $* ($(date +%T))"; }
 
 stage "1/3 release build and all tests"
@@ -46,7 +46,14 @@ export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktra
 # Tests that time a registration against a wall-clock deadline run in stage 1 only: sanitizers
 # slow the library several-fold.
 timed='DeadlineStopsTheRegistration|HealthTurnsNotServingAndRunningWorkDrains'
-(cd build-asan && ctest --output-on-failure -j "$JOBS" -E "^e2e\.|NOT_BUILT|$timed")
+# Whole registrations on real scans, `auto` from far starts, the verification's scene tests and
+# multi-view jobs take from half a minute to four minutes each under ASan (seconds in stage 1):
+# they run in stage 1 only. Their code paths run under ASan in the smaller synthetic tests, the
+# service tests (the abuse suite among them) and the fuzzers.
+heavy='RealDataTest\.|AlignScansTest\.|AutoMethodTest\.|VerificationTest\.|MergedCloudTest\.|ThreadsTest\.'
+heavy+='|RegistrationTest\.(CoarsePhaseFilters|StSicpMatches|MlsBeatsClosest)|TargetTest\.PartsMadeOnFirstUse'
+heavy+='|FeatureCloudTest\.TheTargetMakes|RegistrationServiceTest\.AutoFromAHalfTurn'
+(cd build-asan && ctest --output-on-failure -j "$JOBS" -E "^e2e\.|NOT_BUILT|$timed|$heavy")
 corpus=$(mktemp -d)
 trap 'rm -rf "$corpus"' EXIT
 build-asan/tests/fuzz/mlsreg_fuzz_seeds . "$corpus"
@@ -60,5 +67,5 @@ done
 stage "3/3 TSan: service and cluster tests"
 sanitizer_build build-tsan thread OFF mlsreg_service_tests mlsreg_cluster_tests
 export TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 ignore_noninstrumented_modules=1 suppressions=$PWD/tests/tsan.supp"
-(cd build-tsan && ctest --output-on-failure -j "$JOBS" -R 'Test\.' -E "NOT_BUILT|$timed")
+(cd build-tsan && ctest --output-on-failure -j "$JOBS" -R 'Test\.' -E "NOT_BUILT|$timed|$heavy")
 stage "done"

@@ -87,6 +87,6 @@ sed "s|bun000.ply|missing.ply|" "$work/one.csv" > "$work/missing.csv"
 expect 3 eval --pairs "$work/missing.csv" --samples 300 --jobs 1 --out "$work/runs.csv" --perturb-angle 5
 grep -q "^mlsreg eval: bun000_bun045 (auto, .*missing.csv): .*missing.ply" "$work/err" \
   || fail "missing file: $(cat "$work/err")"
-grep -Eq "^auto +1 +0/1 +1 +- +- +-$" "$work/out" || fail "summary of a run that did not run: $(cat "$work/out")"
+grep -Eq "^auto +1 +0/1 +1 +- +- +- +-$" "$work/out" || fail "summary of a run that did not run: $(cat "$work/out")"
 if grep -q "0\.0000" "$work/out"; then fail "made-up median: $(cat "$work/out")"; fi
 echo "PASS"
