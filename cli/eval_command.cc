@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -19,7 +20,9 @@
 #include "absl/strings/str_split.h"
 #include "cli/cloud_files.h"
 #include "cli/commands.h"
+#include "cli/embedded_scripts.h"
 #include "cli/exit_codes.h"
+#include "cli/python_script.h"
 #include "cli/registration_flags.h"
 #include "cli/report.h"
 #include "mlsreg/core/parallel_for.h"
@@ -45,6 +48,8 @@ struct EvalArgs {
   std::string shard;               // "i/N"
   int shard_from_env = 0;          // N; i from JOB_COMPLETION_INDEX
   std::vector<std::string> merge;  // shard CSVs to merge instead of running
+  std::string dask;                // a Dask scheduler's address: run the shards there
+  int dask_shards = 0;             // 0: one per worker
   RegistrationFlags flags;
 };
 
@@ -487,6 +492,74 @@ int Report(const EvalArgs& args, const std::vector<Method>& methods, const EvalT
   return kExitOk;
 }
 
+// This process's `eval` flags as typed, without those that choose where the runs go and where
+// the results are written (--dask, --dask-shards, --out, --json): what each shard on a Dask
+// worker runs with.
+absl::StatusOr<std::vector<std::string>> ShardFlags() {
+  std::ifstream in("/proc/self/cmdline", std::ios::binary);
+  std::vector<std::string> argv;
+  for (std::string arg; std::getline(in, arg, '\0');) argv.push_back(arg);
+  const auto eval = std::find(argv.begin(), argv.end(), "eval");
+  if (eval == argv.end()) return absl::InternalError("--dask: cannot read this command's flags");
+  std::vector<std::string> flags;
+  for (auto it = eval + 1; it != argv.end(); ++it) {
+    bool dropped = false;
+    for (const char* flag : {"--dask", "--dask-shards", "--out", "--json"}) {
+      if (*it == flag) {
+        ++it;  // and its value
+        dropped = true;
+        break;
+      }
+      if (it->rfind(std::string(flag) + "=", 0) == 0) {
+        dropped = true;
+        break;
+      }
+    }
+    if (it == argv.end()) break;
+    if (!dropped) flags.push_back(*it);
+  }
+  return flags;
+}
+
+// Runs the evaluation's shards on the Dask cluster at args.dask (cli/eval_dask.py) and merges
+// them into the table one local run writes.
+absl::StatusOr<EvalTable> RunOnDask(const EvalArgs& args, const std::vector<Method>& methods,
+                                    const std::vector<Manifest>& manifests) {
+  auto flags = ShardFlags();
+  if (!flags.ok()) return flags.status();
+  std::error_code error;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", error);
+  if (error) return absl::InternalError("--dask: cannot find this program's path");
+  std::string pattern = (std::filesystem::temp_directory_path() / "mlsreg-shards-XXXXXX").string();
+  if (mkdtemp(pattern.data()) == nullptr) {
+    return absl::UnavailableError("--dask: cannot create a temporary directory");
+  }
+  const std::filesystem::path dir(pattern);
+  struct Cleanup {
+    std::filesystem::path dir;
+    ~Cleanup() {
+      std::error_code ignored;
+      std::filesystem::remove_all(dir, ignored);
+    }
+  } cleanup{dir};
+  const nlohmann::json job = {{"scheduler", args.dask},
+                              {"mlsreg", exe.string()},
+                              {"args", *flags},
+                              {"cwd", std::filesystem::current_path().string()},
+                              {"shards", args.dask_shards}};
+  if (absl::Status s = RunPythonScript("--dask", kEvalDaskScript, job.dump(), {dir.string()},
+                                       {"distributed", "python3-distributed"});
+      !s.ok()) {
+    return s;
+  }
+  EvalArgs merge = args;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    if (entry.path().extension() == ".csv") merge.merge.push_back(entry.path().string());
+  }
+  std::sort(merge.merge.begin(), merge.merge.end());
+  return MergeTable(merge, methods, manifests);
+}
+
 int RunEval(const EvalArgs& args) {
   auto registration = args.flags.ToOptions();
   if (!registration.ok()) return ExitFor("eval", registration.status());
@@ -501,6 +574,11 @@ int RunEval(const EvalArgs& args) {
   if (!args.merge.empty() && sharded) {
     return ExitFor("eval",
                    absl::InvalidArgumentError("--merge combines shards: give it without --shard"));
+  }
+  if (!args.dask.empty() && (sharded || !args.merge.empty())) {
+    return ExitFor("eval",
+                   absl::InvalidArgumentError(
+                       "--dask runs every shard itself: give it without --shard or --merge"));
   }
   if (!args.shard.empty() && args.shard_from_env > 0) {
     return ExitFor("eval",
@@ -522,6 +600,8 @@ int RunEval(const EvalArgs& args) {
   absl::StatusOr<EvalTable> table;
   if (!args.merge.empty()) {
     table = MergeTable(args, *methods, *manifests);
+  } else if (!args.dask.empty()) {
+    table = RunOnDask(args, *methods, *manifests);
   } else {
     EvaluationOptions options;
     options.registration = *registration;
@@ -579,6 +659,12 @@ CommandRunner AddEvalCommand(CLI::App& app) {
                   "instead of running, merge these shard CSVs (from --shard runs with the same "
                   "--pairs and --methods) into the CSV, summary and --json one run writes")
       ->expected(1, -1);
+  cmd->add_option("--dask", args->dask,
+                  "run the evaluation on the Dask cluster of this scheduler (tcp://HOST:PORT): "
+                  "one `eval --shard` task per shard, merged into what one run writes; the "
+                  "workers need this mlsreg and the manifests' files at the same paths");
+  cmd->add_option("--dask-shards", args->dask_shards, "shards for --dask (default: one per worker)")
+      ->check(CLI::Range(1, kMaxShards));
   args->flags.AddTo(*cmd, /*method_flag=*/false);
   return [args] { return RunEval(*args); };
 }

@@ -36,7 +36,7 @@ std::string LastLine(const std::string& path) {
 }  // namespace
 
 absl::Status RunPythonScript(std::string_view what, std::string_view script, std::string_view input,
-                             const std::vector<std::string>& args) {
+                             const std::vector<std::string>& args, const PythonNeeds& needs) {
   std::string pattern = (std::filesystem::temp_directory_path() / "mlsreg-script-XXXXXX").string();
   if (mkdtemp(pattern.data()) == nullptr) {
     return absl::UnavailableError(
@@ -75,9 +75,9 @@ absl::Status RunPythonScript(std::string_view what, std::string_view script, std
   posix_spawn_file_actions_destroy(&actions);
   if (spawned != 0) {
     return absl::FailedPreconditionError(
-        absl::StrCat(std::string(what), ": cannot run ", python,
-                     "; it needs python3 with matplotlib (apt-get install python3-matplotlib, or "
-                     "set MLSREG_PYTHON to a python3 that has it)"));
+        absl::StrCat(std::string(what), ": cannot run ", python, "; it needs python3 with ",
+                     std::string(needs.module), " (apt-get install ", std::string(needs.package),
+                     ", or set MLSREG_PYTHON to a python3 that has it)"));
   }
   int status = 0;
   const bool waited = waitpid(pid, &status, 0) == pid;
@@ -85,13 +85,14 @@ absl::Status RunPythonScript(std::string_view what, std::string_view script, std
   const std::string reason = LastLine(errors);
   const int code = waited && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   if (code == 3) {
-    return absl::FailedPreconditionError(absl::StrCat(
-        std::string(what), ": needs matplotlib: ", reason,
-        " (apt-get install python3-matplotlib, or set MLSREG_PYTHON to a python3 that has it)"));
+    return absl::FailedPreconditionError(
+        absl::StrCat(std::string(what), ": needs ", std::string(needs.module), ": ", reason,
+                     " (apt-get install ", std::string(needs.package),
+                     ", or set MLSREG_PYTHON to a python3 that has it)"));
   }
   if (code == 4) return absl::UnavailableError(absl::StrCat(std::string(what), ": ", reason));
-  return absl::UnavailableError(absl::StrCat(std::string(what), ": the drawing script failed",
-                                             reason.empty() ? "" : ": ", reason));
+  return absl::UnavailableError(
+      absl::StrCat(std::string(what), ": the script failed", reason.empty() ? "" : ": ", reason));
 }
 
 }  // namespace mlsreg::cli
