@@ -18,6 +18,7 @@
 #include "cli/connection_flags.h"
 #include "cli/registration_flags.h"
 #include "cli/report.h"
+#include "cli/shard_flags.h"
 #include "mlsreg/evaluation/shard.h"
 #include "mlsreg/io/io.h"
 #include "mlsreg/io/manifest.h"
@@ -29,8 +30,7 @@ struct BatchArgs {
   std::string manifest, results = "results.csv", report;
   int concurrency = 4;
   bool resume = false;
-  std::string shard;       // "i/N"
-  int shard_from_env = 0;  // N; i from JOB_COMPLETION_INDEX
+  ShardFlags shard;
   RegistrationFlags flags;
   ConnectionFlags connection;
 };
@@ -132,21 +132,16 @@ int RunBatch(const BatchArgs& args) {
     std::fprintf(stderr, "mlsreg batch: %s\n", std::string(client.status().message()).c_str());
     return 2;
   }
-  if (!args.shard.empty() && args.shard_from_env > 0) {
-    std::fprintf(stderr, "mlsreg batch: give --shard or --shard-from-env, not both\n");
+  const absl::StatusOr<std::optional<ShardSpec>> shard = args.shard.ToSpec();
+  if (!shard.ok()) {
+    std::fprintf(stderr, "mlsreg batch: %s\n", std::string(shard.status().message()).c_str());
     return 2;
   }
   std::vector<std::size_t> indices;  // the manifest's problems this process runs
-  if (!args.shard.empty() || args.shard_from_env > 0) {
-    auto shard =
-        !args.shard.empty() ? ParseShard(args.shard) : ShardFromEnvironment(args.shard_from_env);
-    if (!shard.ok()) {
-      std::fprintf(stderr, "mlsreg batch: %s\n", std::string(shard.status().message()).c_str());
-      return 2;
-    }
-    indices = ShardProblems(*manifest, *shard);
-    std::fprintf(stderr, "mlsreg batch: shard %d of %d: %zu of %zu jobs\n", shard->index,
-                 shard->count, indices.size(), manifest->problems.size());
+  if (*shard) {
+    indices = ShardProblems(*manifest, **shard);
+    std::fprintf(stderr, "mlsreg batch: shard %d of %d: %zu of %zu jobs\n", (*shard)->index,
+                 (*shard)->count, indices.size(), manifest->problems.size());
   } else {
     for (std::size_t i = 0; i < manifest->problems.size(); ++i) indices.push_back(i);
   }
@@ -269,13 +264,7 @@ CommandRunner AddBatchCommand(CLI::App& app) {
   cmd->add_option("--concurrency", args->concurrency, "registrations in flight")
       ->capture_default_str();
   cmd->add_flag("--resume", args->resume, "skip jobs already done in the results file, append");
-  cmd->add_option("--shard", args->shard,
-                  "run only shard i of N (i/N, 0 <= i < N) of the manifest: whole targets, "
-                  "dealt so that the shards have about as many jobs each");
-  cmd->add_option("--shard-from-env", args->shard_from_env,
-                  "run shard i of this many, i from $JOB_COMPLETION_INDEX (a Kubernetes Indexed "
-                  "Job's pod index)")
-      ->check(CLI::Range(1, kMaxShards));
+  args->shard.AddTo(*cmd, "jobs");
   cmd->add_option("--report", args->report,
                   "write a self-contained HTML report of this run's jobs: failures first, a "
                   "table, the alpha-recall curve (with ground truth), a latency histogram");

@@ -25,6 +25,8 @@
 #include "cli/python_script.h"
 #include "cli/registration_flags.h"
 #include "cli/report.h"
+#include "cli/shard_flags.h"
+#include "cli/temporary_directory.h"
 #include "mlsreg/core/parallel_for.h"
 #include "mlsreg/evaluation/evaluation.h"
 #include "mlsreg/evaluation/shard.h"
@@ -45,8 +47,7 @@ struct EvalArgs {
   double translation_max_d = 0.0;
   int jobs = HardwareThreads();
   int threads = 1;
-  std::string shard;               // "i/N"
-  int shard_from_env = 0;          // N; i from JOB_COMPLETION_INDEX
+  ShardFlags shard;
   std::vector<std::string> merge;  // shard CSVs to merge instead of running
   std::string dask;                // a Dask scheduler's address: run the shards there
   int dask_shards = 0;             // 0: one per worker
@@ -530,18 +531,10 @@ absl::StatusOr<EvalTable> RunOnDask(const EvalArgs& args, const std::vector<Meth
   std::error_code error;
   const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", error);
   if (error) return absl::InternalError("--dask: cannot find this program's path");
-  std::string pattern = (std::filesystem::temp_directory_path() / "mlsreg-shards-XXXXXX").string();
-  if (mkdtemp(pattern.data()) == nullptr) {
-    return absl::UnavailableError("--dask: cannot create a temporary directory");
-  }
-  const std::filesystem::path dir(pattern);
-  struct Cleanup {
-    std::filesystem::path dir;
-    ~Cleanup() {
-      std::error_code ignored;
-      std::filesystem::remove_all(dir, ignored);
-    }
-  } cleanup{dir};
+  absl::StatusOr<TemporaryDirectory> temporary =
+      TemporaryDirectory::Create("mlsreg-shards", "--dask");
+  if (!temporary.ok()) return temporary.status();
+  const std::filesystem::path& dir = temporary->path();
   const nlohmann::json job = {{"scheduler", args.dask},
                               {"mlsreg", exe.string()},
                               {"args", *flags},
@@ -570,7 +563,7 @@ int RunEval(const EvalArgs& args) {
   }
   auto methods = ParseMethods(args.methods);
   if (!methods.ok()) return ExitFor("eval", methods.status());
-  const bool sharded = !args.shard.empty() || args.shard_from_env > 0;
+  const bool sharded = args.shard.given();
   if (!args.merge.empty() && sharded) {
     return ExitFor("eval",
                    absl::InvalidArgumentError("--merge combines shards: give it without --shard"));
@@ -580,20 +573,8 @@ int RunEval(const EvalArgs& args) {
                    absl::InvalidArgumentError(
                        "--dask runs every shard itself: give it without --shard or --merge"));
   }
-  if (!args.shard.empty() && args.shard_from_env > 0) {
-    return ExitFor("eval",
-                   absl::InvalidArgumentError("give --shard or --shard-from-env, not both"));
-  }
-  std::optional<ShardSpec> shard;
-  if (!args.shard.empty()) {
-    auto parsed = ParseShard(args.shard);
-    if (!parsed.ok()) return ExitFor("eval", parsed.status());
-    shard = *parsed;
-  } else if (args.shard_from_env > 0) {
-    auto parsed = ShardFromEnvironment(args.shard_from_env);
-    if (!parsed.ok()) return ExitFor("eval", parsed.status());
-    shard = *parsed;
-  }
+  const absl::StatusOr<std::optional<ShardSpec>> shard = args.shard.ToSpec();
+  if (!shard.ok()) return ExitFor("eval", shard.status());
   auto manifests = ReadManifests(args);
   if (!manifests.ok()) return ExitFor("eval", manifests.status());
 
@@ -610,7 +591,7 @@ int RunEval(const EvalArgs& args) {
     options.jobs = args.jobs;
     options.threads = args.threads;
     options.methods = *methods;
-    table = RunTable(args, options, *manifests, shard);
+    table = RunTable(args, options, *manifests, *shard);
   }
   if (!table.ok()) return ExitFor("eval", table.status());
   return Report(args, *methods, *table);
@@ -647,14 +628,7 @@ CommandRunner AddEvalCommand(CLI::App& app) {
                   "depend on it)")
       ->capture_default_str()
       ->check(CLI::Range(1, 256));
-  cmd->add_option("--shard", args->shard,
-                  "run only shard i of N (i/N, 0 <= i < N): whole targets, dealt so that the N "
-                  "shards have about as many problems each; merge the shards' --out files "
-                  "with --merge");
-  cmd->add_option("--shard-from-env", args->shard_from_env,
-                  "run shard i of this many, i from $JOB_COMPLETION_INDEX (a Kubernetes Indexed "
-                  "Job's pod index)")
-      ->check(CLI::Range(1, kMaxShards));
+  args->shard.AddTo(*cmd, "problems (merge the shards' --out files with --merge)");
   cmd->add_option("--merge", args->merge,
                   "instead of running, merge these shard CSVs (from --shard runs with the same "
                   "--pairs and --methods) into the CSV, summary and --json one run writes")

@@ -10,6 +10,7 @@
 #include <fstream>
 
 #include "absl/strings/str_cat.h"
+#include "cli/temporary_directory.h"
 
 extern char** environ;
 
@@ -37,19 +38,9 @@ std::string LastLine(const std::string& path) {
 
 absl::Status RunPythonScript(std::string_view what, std::string_view script, std::string_view input,
                              const std::vector<std::string>& args, const PythonNeeds& needs) {
-  std::string pattern = (std::filesystem::temp_directory_path() / "mlsreg-script-XXXXXX").string();
-  if (mkdtemp(pattern.data()) == nullptr) {
-    return absl::UnavailableError(
-        absl::StrCat(std::string(what), ": cannot create a temporary directory"));
-  }
-  const std::filesystem::path dir(pattern);
-  struct Cleanup {
-    std::filesystem::path dir;
-    ~Cleanup() {
-      std::error_code ignored;
-      std::filesystem::remove_all(dir, ignored);
-    }
-  } cleanup{dir};
+  absl::StatusOr<TemporaryDirectory> temporary = TemporaryDirectory::Create("mlsreg-script", what);
+  if (!temporary.ok()) return temporary.status();
+  const std::filesystem::path& dir = temporary->path();
   if (absl::Status s = WriteFile(dir / "script.py", script); !s.ok()) return s;
   if (absl::Status s = WriteFile(dir / "input.json", input); !s.ok()) return s;
 

@@ -54,34 +54,36 @@ absl::StatusOr<MlsPatches> MlsPatches::Build(const std::vector<Vec3>& points, co
   if (fitting == PatchFitting::kOnFirstUse) return patches;
   if (should_stop && should_stop()) return absl::CancelledError("MLS patch build cancelled");
 
-  std::atomic<bool> stopped{false}, any_fitted{false};
-  ParallelFor(count, threads, [&](std::size_t begin, std::size_t end, int) {
-    MlsProjector::Workspace workspace;
-    StopPoller stop(should_stop, 64);
-    for (std::size_t i = begin; i < end; ++i) {
-      if (stopped.load(std::memory_order_relaxed) || stop.Poll()) {
-        stopped = true;
-        return;
-      }
-      const bool ok = patches.Fit(i, workspace, patches.patches_[i]);
-      if (ok) any_fitted.store(true, std::memory_order_relaxed);
-      patches.states_[i].store(ok ? kFitted : kFailed, std::memory_order_relaxed);
-    }
-  });
-  if (stopped) return absl::CancelledError("MLS patch build cancelled");
-  if (!any_fitted) {
+  std::atomic<bool> fitted_one{false};
+  const bool finished = ProjectEach(
+      *patches.projector_, count, [&](std::size_t i) -> const Vec3& { return patches.anchors_[i]; },
+      [&](std::size_t i, const MlsProjection& projection,
+          const MlsProjector::Workspace& workspace) {
+        const bool ok = projection.status == ProjectionStatus::kOk;
+        if (ok) {
+          patches.patches_[i] = PatchOf(workspace.last_fit);
+          fitted_one.store(true, std::memory_order_relaxed);
+        }
+        patches.states_[i].store(ok ? kFitted : kFailed, std::memory_order_relaxed);
+      },
+      threads, should_stop);
+  if (!finished) return absl::CancelledError("MLS patch build cancelled");
+  if (!fitted_one.load()) {
     return absl::FailedPreconditionError(
         "no MLS patch could be fitted: the cloud has no neighbourhood of 3 samples within r");
   }
   return patches;
 }
 
+MlsPatches::Patch MlsPatches::PatchOf(const MlsLocalFit& fit) {
+  return Patch{fit.origin,       fit.frame.tangent_u,     fit.frame.tangent_v,
+               fit.frame.normal, fit.height.coefficients, fit.frame.surface_variation};
+}
+
 bool MlsPatches::Fit(std::size_t i, MlsProjector::Workspace& workspace, Patch& out) const {
   const MlsProjection projection = projector_->Project(anchors_[i], workspace);
   if (projection.status != ProjectionStatus::kOk) return false;
-  const MlsLocalFit& fit = workspace.last_fit;
-  out = Patch{fit.origin,       fit.frame.tangent_u,     fit.frame.tangent_v,
-              fit.frame.normal, fit.height.coefficients, fit.frame.surface_variation};
+  out = PatchOf(workspace.last_fit);
   return true;
 }
 

@@ -95,6 +95,7 @@ class MlsPatches {
 
   MlsPatches(const std::vector<Vec3>& points, const KdTree& tree, const MlsOptions& mls,
              const std::optional<Vec3>& viewpoint);
+  static Patch PatchOf(const MlsLocalFit& fit);
   // Algorithm 1 from anchor `i`; false when it fails.
   bool Fit(std::size_t i, MlsProjector::Workspace& workspace, Patch& out) const;
   // Anchor i's patch into `out`, fitting it now if no thread has; false when its fit failed.
