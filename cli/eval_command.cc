@@ -496,7 +496,7 @@ int Report(const EvalArgs& args, const std::vector<Method>& methods, const EvalT
 // This process's `eval` flags as typed, without those that choose where the runs go and where
 // the results are written (--dask, --dask-shards, --out, --json): what each shard on a Dask
 // worker runs with.
-absl::StatusOr<std::vector<std::string>> ShardFlags() {
+absl::StatusOr<std::vector<std::string>> FlagsForEachShard() {
   std::ifstream in("/proc/self/cmdline", std::ios::binary);
   std::vector<std::string> argv;
   for (std::string arg; std::getline(in, arg, '\0');) argv.push_back(arg);
@@ -526,7 +526,7 @@ absl::StatusOr<std::vector<std::string>> ShardFlags() {
 // them into the table one local run writes.
 absl::StatusOr<EvalTable> RunOnDask(const EvalArgs& args, const std::vector<Method>& methods,
                                     const std::vector<Manifest>& manifests) {
-  auto flags = ShardFlags();
+  auto flags = FlagsForEachShard();
   if (!flags.ok()) return flags.status();
   std::error_code error;
   const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", error);
