@@ -176,7 +176,8 @@ nlohmann::json VerificationJson(const VerificationScore& v) {
           {"worst_direction", direction},
           {"worst_direction_text", v.WorstDirectionText()},
           {"worst_direction_fraction", v.worst_direction_fraction},
-          {"worst_direction_samples", v.worst_direction_samples}};
+          {"worst_direction_samples", v.worst_direction_samples},
+          {"worst_direction_strength", v.worst_direction_strength}};
 }
 
 nlohmann::json ResultJson(std::string_view method, const RegistrationResult& result,

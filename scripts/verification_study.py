@@ -101,7 +101,9 @@ def score_row(pair, kind, v, j):
             "verdict": v.get("verdict", j.get("error", "")),
             **{k: v.get(k, "") for k in ("inlier_fraction", "worst_direction_fraction",
                                          "residual_scale", "pull_fraction", "pull_displacement",
-                                         "settle_displacement", "inlier_distance", "noise")}}
+                                         "settle_displacement", "inlier_distance", "noise", "covered",
+                                         "worst_direction_samples",
+                                         "worst_direction_strength")}}
 
 
 def verify(exe, pair, kind, pose):

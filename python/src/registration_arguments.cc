@@ -62,6 +62,7 @@ py::dict ScoreToPython(const VerificationScore& s) {
       py::arg("worst_direction_text") = s.WorstDirectionText(),
       py::arg("worst_direction_fraction") = s.worst_direction_fraction,
       py::arg("worst_direction_samples") = s.worst_direction_samples,
+      py::arg("worst_direction_strength") = s.worst_direction_strength,
       py::arg("residual_scale") = s.residual_scale, py::arg("pull_fraction") = s.pull_fraction,
       py::arg("pull_rotation_deg") = s.pull_rotation_deg,
       py::arg("pull_translation") = s.pull_translation,

@@ -118,6 +118,9 @@ def test_register_recovers_the_ground_truth(bun000, bunny_target, gt, near_start
     assert result.sampling_distance == pytest.approx(bunny_target.sampling_distance)
     assert result.auto["early_exit"] and len(result.auto["candidates"]) == 1
     assert result.verification["verdict"] == "verified" and result.verification["covered"] > 0
+    # Verified means no direction of motion is left unconstrained (strength per covered sample
+    # at least VerificationOptions::min_direction_strength, 0.01).
+    assert result.verification["worst_direction_strength"] >= 0.01
     # The lengths it chose from the data, in the clouds' units (metres for the bunny).
     scales = result.scales
     assert scales["mean_spacing"] == pytest.approx(bunny_target.sampling_distance)
