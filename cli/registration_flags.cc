@@ -68,17 +68,14 @@ void RegistrationFlags::AddTo(CLI::App& app, bool method_flag) {
       option = app.add_option_function<std::string>(
           flag,
           [this, &spec, field](const std::string& text) {
-            absl::StatusOr<ParameterValue> value = spec.Parse(text, field);
-            if (value.ok()) {
-              spec.set(options_, *value);
-            } else if (error_.ok()) {
-              error_ = value.status();
-            }
+            absl::Status set = SetParameterFromText(options_, spec, text, field);
+            if (!set.ok() && error_.ok()) error_ = set;
           },
-          std::string(spec.help) + (spec.type == ParameterType::kEnum
-                                        ? ": " + spec.enum_names->Choices()
-                                    : spec.note.empty() ? std::string()
-                                                        : " " + std::string(spec.note)));
+          std::string(spec.help) +
+              (spec.type == ParameterType::kEnum ? ": " + spec.enum_names->Choices()
+               : spec.note.empty()               ? std::string()
+                                                 : " " + std::string(spec.note)) +
+              (spec.IsLength() ? " (units of d, or a length: 1m, 30cm, 5mm)" : ""));
       option->default_str(spec.Format(spec.get(defaults)));
       option->type_name(TypeName(spec.type));
     }

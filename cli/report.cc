@@ -40,10 +40,11 @@ std::string FormatIteration(const IterationReport& r) {
 std::string FormatVerification(const VerificationScore& v) {
   const std::string evidence = absl::StrFormat(
       "%.1f %% of the overlap (%d of %d covered samples) within %.4g (%.2f d) of the target's "
-      "surface, RMSE %.3f d; weakest direction: %s, %.1f %% of its %d samples; pull: a step of "
-      "%.3g deg and %.3g would remove %.1f %% of the residuals, settling moves the samples %.3g",
+      "surface, RMSE %.3f d; weakest direction: %s, standard error %.3g, %.1f %% of its %d "
+      "samples agree; pull: a step of %.3g deg and %.3g would remove %.1f %% of the residuals, "
+      "settling moves the samples %.3g",
       100.0 * v.inlier_fraction, v.inliers, v.covered, v.inlier_distance, v.inlier_distance_d,
-      v.rmse_d, v.WorstDirectionText(), 100.0 * v.worst_direction_fraction,
+      v.rmse_d, v.WorstDirectionText(), v.worst_direction_error, 100.0 * v.worst_direction_fraction,
       v.worst_direction_samples, v.pull_rotation_deg, v.pull_translation, 100.0 * v.pull_fraction,
       v.settle_displacement);
   if (v.verified()) return "verification: verified: " + evidence;
@@ -177,7 +178,8 @@ nlohmann::json VerificationJson(const VerificationScore& v) {
           {"worst_direction_text", v.WorstDirectionText()},
           {"worst_direction_fraction", v.worst_direction_fraction},
           {"worst_direction_samples", v.worst_direction_samples},
-          {"worst_direction_strength", v.worst_direction_strength}};
+          {"worst_direction_strength", v.worst_direction_strength},
+          {"worst_direction_error", v.worst_direction_error}};
 }
 
 nlohmann::json ResultJson(std::string_view method, const RegistrationResult& result,

@@ -103,7 +103,7 @@ def score_row(pair, kind, v, j):
                                          "residual_scale", "pull_fraction", "pull_displacement",
                                          "settle_displacement", "inlier_distance", "noise", "covered",
                                          "worst_direction_samples",
-                                         "worst_direction_strength")}}
+                                         "worst_direction_strength", "worst_direction_error")}}
 
 
 def verify(exe, pair, kind, pose):

@@ -106,6 +106,17 @@ absl::StatusOr<RegistrationOptions> OptionsFromProto(v1::Method method,
     if (absl::Status s = spec.Check(**value, field); !s.ok()) return s;
     spec.set(o, **value);
   }
+  for (const auto& [wire_field, metres] : p.absolute_lengths()) {
+    const ParameterSpec* spec = nullptr;
+    for (const ParameterSpec& row : ParameterTable()) {
+      if (row.wire_field == wire_field && row.IsLength()) spec = &row;
+    }
+    if (spec == nullptr) {
+      return absl::InvalidArgumentError(absl::StrCat("parameters.absolute_lengths: '", wire_field,
+                                                     "' is not a length parameter"));
+    }
+    o.absolute_lengths.insert_or_assign(std::string(spec->name), metres);
+  }
   if (absl::Status s = ValidateOptions(o); !s.ok()) {
     return absl::InvalidArgumentError(absl::StrCat("parameters.", s.message()));
   }
@@ -118,6 +129,11 @@ void OptionsToProto(const RegistrationOptions& o, v1::Method* method,
   p->Clear();
   for (const ParameterSpec& spec : ParameterTable()) {
     if (const FieldDescriptor* f = WireField(spec)) WriteField(spec, spec.get(o), *f, p);
+  }
+  for (const auto& [name, metres] : o.absolute_lengths) {
+    if (const ParameterSpec* spec = FindParameter(name)) {
+      (*p->mutable_absolute_lengths())[std::string(spec->wire_field)] = metres;
+    }
   }
 }
 

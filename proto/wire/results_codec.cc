@@ -29,6 +29,7 @@ void ToProto(const VerificationScore& s, v1::VerificationScore* out) {
   out->set_worst_direction_fraction(s.worst_direction_fraction);
   out->set_worst_direction_samples(s.worst_direction_samples);
   out->set_worst_direction_strength(s.worst_direction_strength);
+  out->set_worst_direction_error(s.worst_direction_error);
   out->set_residual_scale(s.residual_scale);
   out->set_pull_fraction(s.pull_fraction);
   out->set_pull_rotation_deg(s.pull_rotation_deg);
@@ -56,6 +57,7 @@ VerificationScore FromProto(const v1::VerificationScore& p) {
   s.worst_direction_fraction = p.worst_direction_fraction();
   s.worst_direction_samples = p.worst_direction_samples();
   s.worst_direction_strength = p.worst_direction_strength();
+  s.worst_direction_error = p.worst_direction_error();
   s.residual_scale = p.residual_scale();
   s.pull_fraction = p.pull_fraction();
   s.pull_rotation_deg = p.pull_rotation_deg();

@@ -63,6 +63,7 @@ py::dict ScoreToPython(const VerificationScore& s) {
       py::arg("worst_direction_fraction") = s.worst_direction_fraction,
       py::arg("worst_direction_samples") = s.worst_direction_samples,
       py::arg("worst_direction_strength") = s.worst_direction_strength,
+      py::arg("worst_direction_error") = s.worst_direction_error,
       py::arg("residual_scale") = s.residual_scale, py::arg("pull_fraction") = s.pull_fraction,
       py::arg("pull_rotation_deg") = s.pull_rotation_deg,
       py::arg("pull_translation") = s.pull_translation,
@@ -114,9 +115,12 @@ RegistrationOptions OptionsFromPython(std::string_view method, const py::dict& p
           absl::StrCat(name, " and ", it->second, " name the same parameter (",
                        std::string(spec->wire_field), "): give one")));
     }
-    ParameterValue parsed = ValueOrThrow(spec->Parse(ParameterText(value), name));
-    if (inverted) parsed = !std::get<bool>(parsed);
-    spec->set(options, parsed);
+    if (inverted) {
+      ParameterValue parsed = ValueOrThrow(spec->Parse(ParameterText(value), name));
+      spec->set(options, !std::get<bool>(parsed));
+    } else {
+      ThrowIfError(SetParameterFromText(options, *spec, ParameterText(value), name));
+    }
   }
   return options;
 }

@@ -74,6 +74,25 @@ expect 0 register --source data/bunny/bun000.ply --target data/bunny/bun045.ply 
 grep -Eq "^result: max_iterations \(2 per phase\) after [0-9]+ iterations in total" "$work/out" \
   || fail "max_iterations: $(head -1 "$work/out")"
 
+# ---- lengths in metres: the same registration as in units of d; a bad unit names its flag
+expect 0 register --source data/bunny/bun000.ply --target data/bunny/bun045.ply --init "$GT" \
+  --method mls-sicp --samples 300 --threads 1 --max-iterations 3 --mls-radius 5d --quiet --json "$work/d.json"
+metres=$(python3 -c "import json; print(5 * json.load(open('$work/d.json'))['scales']['mean_spacing'])")
+expect 0 register --source data/bunny/bun000.ply --target data/bunny/bun045.ply --init "$GT" \
+  --method mls-sicp --samples 300 --threads 1 --max-iterations 3 --mls-radius "${metres}m" --quiet --json "$work/m.json"
+python3 - "$work/d.json" "$work/m.json" <<'PY' || fail "--mls-radius in m differs from in d"
+import json, sys
+a, b = (json.load(open(p)) for p in sys.argv[1:])
+assert abs(a["scales"]["mls_radius"] - b["scales"]["mls_radius"]) < 1e-9 * a["scales"]["mls_radius"], (a["scales"], b["scales"])
+assert max(abs(x - y) for x, y in zip(a["transform"], b["transform"])) < 1e-9
+PY
+expect 2 "${reg[@]}" --max-distance 1furlong
+grep -q -- "--max-distance: '1furlong' is not valid" "$work/err" || fail "bad length: $(cat "$work/err")"
+expect 2 "${reg[@]}" --max-distance=-1cm
+grep -q -- "--max-distance: '-1cm' is not valid" "$work/err" || fail "negative length: $(cat "$work/err")"
+expect 2 "${reg[@]}" --mls-radius 10m
+grep -q "mls.radius_d = 10 m is .* d on this target" "$work/err" || fail "length out of range: $(cat "$work/err")"
+
 # ---- eval: the default method; starting at the ground truth is warned of; a missing file
 head -2 data/bunny/pairs.csv > "$work/one.csv"
 sed -i "s|bun000.ply|$PWD/data/bunny/bun000.ply|; s|bun045.ply|$PWD/data/bunny/bun045.ply|" "$work/one.csv"

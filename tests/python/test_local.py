@@ -118,9 +118,10 @@ def test_register_recovers_the_ground_truth(bun000, bunny_target, gt, near_start
     assert result.sampling_distance == pytest.approx(bunny_target.sampling_distance)
     assert result.auto["early_exit"] and len(result.auto["candidates"]) == 1
     assert result.verification["verdict"] == "verified" and result.verification["covered"] > 0
-    # Verified means no direction of motion is left unconstrained (strength per covered sample
-    # at least VerificationOptions::min_direction_strength, 0.01).
-    assert result.verification["worst_direction_strength"] >= 0.01
+    # Verified means the agreeing samples fix every direction of motion to a standard error of at
+    # most one noise sigma, a third of the band.
+    v = result.verification
+    assert 0 < v["worst_direction_error"] <= v["inlier_distance"] / 3
     # The lengths it chose from the data, in the clouds' units (metres for the bunny).
     scales = result.scales
     assert scales["mean_spacing"] == pytest.approx(bunny_target.sampling_distance)
@@ -164,6 +165,18 @@ def test_open3d_clouds_register_and_transform(bun000, bun045, gt, near_start):
 
 
 # ---- parameters
+
+def test_a_length_in_metres_is_the_same_as_in_units_of_d(bun000, bunny_target, near_start):
+    d = bunny_target.sampling_distance
+    in_d = mlsreg.register(bun000, bunny_target, method="mls-sicp", init=near_start,
+                           max_iterations=3, mls_radius_d=5)
+    in_m = mlsreg.register(bun000, bunny_target, method="mls-sicp", init=near_start,
+                           max_iterations=3, mls_radius_d=f"{5 * d!r}m")
+    assert in_m.scales["mls_radius"] == pytest.approx(5 * d, rel=1e-9)
+    assert np.allclose(in_m.transform, in_d.transform, atol=1e-9)
+    with pytest.raises(ValueError, match="mls_radius_d: .5 parsecs. is not valid"):
+        mlsreg.register(bun000, bunny_target, method="mls-sicp", mls_radius_d="5 parsecs")
+
 
 def test_parameters_are_the_tables_names_with_its_defaults():
     rows = {row["name"]: row for row in mlsreg.parameters()}

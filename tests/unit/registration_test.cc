@@ -240,6 +240,39 @@ TEST(RegistrationTest, SameInputsGiveBitIdenticalResults) {
   EXPECT_EQ(a->transform, b->transform);
 }
 
+// A length in metres is the same registration as that length in units of the target's d.
+TEST(RegistrationTest, LengthsInMetresAreTheSameAsInUnitsOfD) {
+  const SyntheticPair pair = MakePair(0.0);
+  const double d = pair.target->sampling_distance();
+  const Matrix4 initial = RandomPerturbation(3.0, 3.0 * d, Vec3::Zero(), 5) * pair.truth;
+  RegistrationOptions in_d;
+  in_d.method = Method::kMlsSicp;
+  in_d.max_iterations = 8;
+  in_d.filter.max_distance_d = 6.0;
+  in_d.mls.radius_d = 5.0;
+  RegistrationOptions in_metres = in_d;
+  in_metres.filter.max_distance_d = 0.0;
+  in_metres.absolute_lengths = {{"filter.max_distance_d", 6.0 * d}, {"mls.radius_d", 5.0 * d}};
+  auto a = Register(*pair.target, pair.source, initial, in_d);
+  auto b = Register(*pair.target, pair.source, initial, in_metres);
+  ASSERT_TRUE(a.ok() && b.ok()) << b.status();
+  EXPECT_TRUE(b->transform.isApprox(a->transform, 1e-9));
+  EXPECT_NEAR(b->scales.mls_radius, 5.0 * d, 1e-12);
+
+  // Too large a radius for this target is refused with both units and d.
+  in_metres.absolute_lengths = {{"mls.radius_d", 1000.0 * d}};
+  auto c = Register(*pair.target, pair.source, initial, in_metres);
+  EXPECT_EQ(c.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(c.status().message().find("mls.radius_d"), std::string::npos) << c.status();
+  EXPECT_NE(c.status().message().find("1000 d on this target"), std::string::npos) << c.status();
+  in_metres.absolute_lengths = {{"num_samples", 1.0}};
+  EXPECT_NE(Register(*pair.target, pair.source, initial, in_metres)
+                .status()
+                .message()
+                .find("num_samples is not a length parameter"),
+            std::string::npos);
+}
+
 TEST(RegistrationTest, RejectsBadInputNamingTheField) {
   const SyntheticPair pair = MakePair(0.0);
   RegistrationOptions options;

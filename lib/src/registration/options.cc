@@ -1,5 +1,8 @@
 #include "mlsreg/registration/options.h"
 
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
 #include "mlsreg/registration/parameters.h"
 
 namespace mlsreg {
@@ -48,6 +51,17 @@ const EnumNames& SicpMetricNames() {
 absl::Status ValidateOptions(const RegistrationOptions& options) {
   for (const ParameterSpec& spec : ParameterTable()) {
     if (absl::Status s = spec.Check(spec.get(options), spec.name); !s.ok()) return s;
+  }
+  for (const auto& [name, metres] : options.absolute_lengths) {
+    const ParameterSpec* spec = FindParameter(name);
+    if (spec == nullptr || !spec->IsLength()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("absolute_lengths: ", name, " is not a length parameter"));
+    }
+    const ParameterRange& range = spec->range;  // its lower bound holds in any unit
+    if (!std::isfinite(metres) || !(range.min_open ? metres > range.min : metres >= range.min)) {
+      return absl::InvalidArgumentError(absl::StrCat(name, " = ", metres, " m ", spec->Rule()));
+    }
   }
   // The solver's constants (mu, alpha, ...) are not registration parameters but are checked too.
   SparseIcpOptions sicp = options.sicp;

@@ -348,4 +348,71 @@ absl::StatusOr<ParameterValue> ParameterSpec::Parse(std::string_view text,
   return value;
 }
 
+namespace {
+
+// The units a length may be given in, and their size in the clouds' units (metres).
+struct LengthUnit {
+  std::string_view suffix;
+  double metres;
+};
+constexpr LengthUnit kAbsoluteUnits[] = {{"mm", 1e-3}, {"cm", 1e-2}, {"m", 1.0}};
+
+}  // namespace
+
+absl::Status SetParameterFromText(RegistrationOptions& options, const ParameterSpec& spec,
+                                  std::string_view text, std::string_view field) {
+  if (spec.IsLength()) {
+    std::string_view number = text;
+    while (!number.empty() && number.back() == ' ') number.remove_suffix(1);
+    for (const LengthUnit& unit : kAbsoluteUnits) {
+      if (!number.ends_with(unit.suffix)) continue;
+      number.remove_suffix(unit.suffix.size());
+      while (!number.empty() && number.back() == ' ') number.remove_suffix(1);
+      double value;
+      const char* end = number.data() + number.size();
+      const auto [p, ec] = std::from_chars(number.data(), end, value);
+      const bool above_min = spec.range.min_open ? value > spec.range.min : value >= spec.range.min;
+      if (number.empty() || ec != std::errc() || p != end || !std::isfinite(value) || !above_min) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            std::string(field), ": '", std::string(text), "' is not valid: ", spec.Rule(),
+            " in units of d, or a length in m, cm or mm ",
+            spec.range.min_open ? "(> " : "(>= ", Bound(spec.range.min), ")"));
+      }
+      options.absolute_lengths.insert_or_assign(std::string(spec.name), value * unit.metres);
+      return absl::OkStatus();
+    }
+    if (number.ends_with('d')) {
+      text = number.substr(0, number.size() - 1);
+      while (!text.empty() && text.back() == ' ') text.remove_suffix(1);
+    }
+  }
+  absl::StatusOr<ParameterValue> value = spec.Parse(text, field);
+  if (!value.ok()) return value.status();
+  spec.set(options, *value);
+  if (auto it = options.absolute_lengths.find(spec.name); it != options.absolute_lengths.end()) {
+    options.absolute_lengths.erase(it);
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<RegistrationOptions> ResolveLengths(const RegistrationOptions& options, double d) {
+  RegistrationOptions resolved = options;
+  resolved.absolute_lengths.clear();
+  for (const auto& [name, metres] : options.absolute_lengths) {
+    const ParameterSpec* spec = FindParameter(name);
+    if (spec == nullptr || !spec->IsLength()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("absolute_lengths: ", name, " is not a length parameter"));
+    }
+    const double in_d = metres / d;
+    if (absl::Status s = spec->Check(in_d, name); !s.ok()) {
+      return absl::InvalidArgumentError(absl::StrCat(name, " = ", metres, " m is ", in_d,
+                                                     " d on this target (d = ", d,
+                                                     " m): ", spec->Rule()));
+    }
+    spec->set(resolved, in_d);
+  }
+  return resolved;
+}
+
 }  // namespace mlsreg

@@ -8,6 +8,7 @@
 #include "method_runners.h"
 #include "mlsreg/geometry/mls_radius.h"
 #include "mlsreg/geometry/noise_estimate.h"
+#include "mlsreg/registration/parameters.h"
 #include "mlsreg/registration/verification.h"
 
 namespace mlsreg {
@@ -80,11 +81,16 @@ double SnapToTargetPatches(const Target& target, const RegistrationOptions& opti
 
 absl::StatusOr<RegistrationResult> Register(const Target& target, const PointCloud& source,
                                             const Matrix4& initial,
-                                            const RegistrationOptions& options,
+                                            const RegistrationOptions& requested,
                                             const RegistrationCallbacks& callbacks,
                                             const ExecutionOptions& execution) {
   const internal::Clock::time_point start = internal::Clock::now();
-  if (absl::Status s = ValidateOptions(options); !s.ok()) return s;
+  if (absl::Status s = ValidateOptions(requested); !s.ok()) return s;
+  // Lengths given in metres become units of this target's d.
+  const absl::StatusOr<RegistrationOptions> in_d =
+      ResolveLengths(requested, target.sampling_distance());
+  if (!in_d.ok()) return in_d.status();
+  const RegistrationOptions& options = *in_d;
   if (absl::Status s = ValidatePointCloud(source, 3); !s.ok()) {
     return absl::InvalidArgumentError(absl::StrCat("source: ", s.message()));
   }

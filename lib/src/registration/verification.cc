@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "absl/strings/str_format.h"
 #include "mlsreg/geometry/noise_estimate.h"
@@ -183,7 +184,11 @@ double SettleDisplacement(const Target& target, std::span<const Vec3> points,
 
 // `floor` is the smallest band (one median spacing): a pose the data would move by less than
 // that is never pulled, however significant the pull (clean data pull every imprecise pose).
-Verdict Judge(const VerificationScore& s, bool unconstrained, const VerificationOptions& o,
+// Whether the agreeing samples fix every direction of motion, and if not, whether the covered
+// samples would (then the samples that would fix it disagree) or not even they.
+enum class DirectionCheck { kFixed, kDisagrees, kUnconstrained };
+
+Verdict Judge(const VerificationScore& s, DirectionCheck direction, const VerificationOptions& o,
               double rms_per_band, double floor) {
   if (s.covered < o.min_covered_samples) return Verdict::kTooLittleOverlap;
   if (s.inlier_fraction < o.min_inlier_fraction ||
@@ -197,10 +202,8 @@ Verdict Judge(const VerificationScore& s, bool unconstrained, const Verification
       (s.pull_fraction > o.max_pull_fraction && s.settle_displacement > floor)) {
     return Verdict::kPulled;
   }
-  if (unconstrained) return Verdict::kUnconstrained;
-  if (s.worst_direction_fraction < o.min_direction_ratio * s.inlier_fraction) {
-    return Verdict::kDirectionDisagrees;
-  }
+  if (direction == DirectionCheck::kUnconstrained) return Verdict::kUnconstrained;
+  if (direction == DirectionCheck::kDisagrees) return Verdict::kDirectionDisagrees;
   return Verdict::kVerified;
 }
 
@@ -258,7 +261,8 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   };
 
   // Pass 1: coverage and agreement, and the covered samples' centre.
-  std::vector<std::uint8_t> state(points.size(), 0);  // 1 covered, 2 inlier
+  std::vector<std::uint8_t> state(points.size(), 0);              // 1 covered, 2 inlier
+  std::vector<Vec3> target_normals(points.size(), Vec3::Zero());  // where each sample lands
   std::vector<Pull> pulls;  // the inliers' residuals across the target's local planes
   pulls.reserve(points.size());
   double sum_squared = 0.0, sum_normalised = 0.0, sum_band = 0.0;
@@ -270,6 +274,7 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
     ++score.covered;
     centre += x;
     const SurfaceHit hit = HitSurface(target, x);
+    target_normals[i] = hit.normal;
     const double local_band = band_of(hit);
     if (hit.distance > local_band) continue;
     state[i] = 2;
@@ -305,35 +310,84 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
     score.settle_displacement =
         SettleDisplacement(target, points, state, pose, centre, lever, coverage, band_of);
   }
-  std::vector<Vector6> jacobians(points.size(), Vector6::Zero());
-  Matrix6 information = Matrix6::Zero();
+  // Pass 3: how precisely the agreeing samples fix each direction of motion. The point-to-plane
+  // information of a set of samples along a direction (the sum of (J . axis)^2, rotations in
+  // units of the lever) gives the pose's standard error there: residual RMS / sqrt(information).
+  // Noisy normals tilt at random and would feign information along a bare road; the product of
+  // the source's and the target's normals (independent noise) keeps only the shared shape:
+  // sum (Js . axis)(Jt . axis), whose expectation is the noise-free information. It counts when
+  // it stands out of its own noise by min_direction_z (a bare road gives about zero). The six
+  // directions are the eigen-directions of the agreeing samples' information.
+  std::vector<Vector6> source_jacobians(points.size(), Vector6::Zero());
+  std::vector<Vector6> target_jacobians(points.size(), Vector6::Zero());
+  Matrix6 agreeing_information = Matrix6::Zero();
   for (std::size_t i = 0; i < points.size(); ++i) {
-    if (!state[i] || !(normals[i].squaredNorm() > 0.0)) continue;
+    if (!state[i] || !(normals[i].squaredNorm() > 0.0) ||
+        !(target_normals[i].squaredNorm() > 0.0)) {
+      continue;
+    }
     const Vec3 x = pose * points[i] - centre;
     const Vec3 n = pose.linear() * normals[i];
-    jacobians[i].head<3>() = x.cross(n) / lever;
-    jacobians[i].tail<3>() = n;
-    information.noalias() += jacobians[i] * jacobians[i].transpose();
+    const Vec3 m = n.dot(target_normals[i]) < 0.0 ? Vec3(-target_normals[i]) : target_normals[i];
+    source_jacobians[i] << x.cross(n) / lever, n;
+    target_jacobians[i] << x.cross(m) / lever, m;
+    if (state[i] == 2)
+      agreeing_information.noalias() += source_jacobians[i] * source_jacobians[i].transpose();
   }
-  const Eigen::SelfAdjointEigenSolver<Matrix6> solver(information);
-  // Each direction: how strongly the samples constrain it (its eigenvalue per covered sample:
-  // the mean squared residual a unit motion along it causes), and how many of the samples that
-  // constrain it most (at least half the top percentile's sensitivity) agree.
-  struct Direction {
-    Vector6 axis;
-    double strength = 0.0;
-    int constraining = 0;
-    double fraction = 0.0;
-  };
-  std::vector<Direction> directions;
-  std::vector<double> sensitivity;
-  sensitivity.reserve(points.size());
-  for (int k = 0; k < 6 && solver.info() == Eigen::Success && score.covered > 0; ++k) {
-    Direction direction{solver.eigenvectors().col(k)};
-    direction.strength = std::max(0.0, solver.eigenvalues()[k]) / score.covered;
-    sensitivity.clear();
+  DirectionCheck direction = DirectionCheck::kFixed;
+  const Eigen::SelfAdjointEigenSolver<Matrix6> solver(agreeing_information);
+  if (solver.info() == Eigen::Success && score.inliers > 0) {
+    const double rms = std::sqrt(sum_squared / score.inliers);
+    const double bound =
+        options.max_direction_error_sigmas * score.inlier_distance / options.band_per_noise;
+    // Along `axis`, over the agreeing samples (or all covered ones): the standard error, and
+    // whether the information is real (stands out of its scatter) and precise enough.
+    struct AlongAxis {
+      double information = 0.0, scatter = 0.0, strength = 0.0, error = 0.0;
+      bool fixed = false;
+    };
+    const auto along = [&](const Vector6& axis, bool agreeing_only) {
+      AlongAxis a;
+      for (std::size_t i = 0; i < points.size(); ++i) {
+        if (state[i] == 0 || (agreeing_only && state[i] != 2)) continue;
+        const double s = source_jacobians[i].dot(axis), t = target_jacobians[i].dot(axis);
+        a.information += s * t;
+        // The noise of s * t: (s^2 - t^2) / 2 is s0 (e_s - e_t) for shared shape s0 and noise
+        // e, and has the variance of s * t for pure noise.
+        a.scatter += Squared(s * s - t * t) / 4.0;
+        a.strength += s * s;
+      }
+      a.error = a.information > 0.0 ? rms / std::sqrt(a.information)
+                                    : std::numeric_limits<double>::infinity();
+      a.fixed = a.information > options.min_direction_z * std::sqrt(a.scatter) && a.error <= bound;
+      return a;
+    };
+    // The least fixed of the six directions: the first that fails, else the least precise.
+    int worst = 0;
+    AlongAxis worst_along;
+    for (int k = 0; k < 6; ++k) {
+      const AlongAxis a = along(solver.eigenvectors().col(k), true);
+      const bool worse = k == 0 || (!a.fixed && worst_along.fixed) ||
+                         (a.fixed == worst_along.fixed && a.error > worst_along.error);
+      if (worse) {
+        worst = k;
+        worst_along = a;
+      }
+    }
+    const Vector6 axis = solver.eigenvectors().col(worst);
+    score.worst_direction = axis;
+    score.worst_direction_error = worst_along.error;
+    const AlongAxis covered = along(axis, false);
+    score.worst_direction_strength = covered.strength / score.covered;
+    if (!worst_along.fixed) {
+      direction = covered.fixed ? DirectionCheck::kDisagrees : DirectionCheck::kUnconstrained;
+    }
+    // The evidence: the samples that constrain that direction most (at least
+    // direction_sensitivity of the top percentile's sensitivity), and the share that agrees.
+    std::vector<double> sensitivity;
+    sensitivity.reserve(score.covered);
     for (std::size_t i = 0; i < points.size(); ++i) {
-      if (state[i]) sensitivity.push_back(std::abs(jacobians[i].dot(direction.axis)));
+      if (state[i]) sensitivity.push_back(std::abs(source_jacobians[i].dot(axis)));
     }
     const auto top =
         sensitivity.begin() + static_cast<std::ptrdiff_t>(0.99 * (sensitivity.size() - 1));
@@ -341,34 +395,16 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
     const double threshold = options.direction_sensitivity * *top;
     int agreeing = 0;
     for (std::size_t i = 0; i < points.size(); ++i) {
-      if (!state[i] || !(std::abs(jacobians[i].dot(direction.axis)) >= threshold)) continue;
-      ++direction.constraining;
+      if (!state[i] || !(std::abs(source_jacobians[i].dot(axis)) >= threshold)) continue;
+      ++score.worst_direction_samples;
       agreeing += state[i] == 2;
     }
-    if (direction.constraining > 0) {
-      direction.fraction = static_cast<double>(agreeing) / direction.constraining;
+    if (score.worst_direction_samples > 0) {
+      score.worst_direction_fraction =
+          static_cast<double>(agreeing) / score.worst_direction_samples;
     }
-    directions.push_back(direction);
   }
-  // The weakest direction when the data barely constrain it, else the one whose samples agree
-  // least.
-  bool unconstrained = false;
-  if (!directions.empty()) {
-    auto worst = std::min_element(
-        directions.begin(), directions.end(),
-        [](const Direction& a, const Direction& b) { return a.strength < b.strength; });
-    unconstrained = worst->strength < options.min_direction_strength;
-    if (!unconstrained) {
-      worst = std::min_element(
-          directions.begin(), directions.end(),
-          [](const Direction& a, const Direction& b) { return a.fraction < b.fraction; });
-    }
-    score.worst_direction = worst->axis;
-    score.worst_direction_samples = worst->constraining;
-    score.worst_direction_fraction = worst->fraction;
-    score.worst_direction_strength = worst->strength;
-  }
-  score.verdict = Judge(score, unconstrained, options, rms_per_band, floor);
+  score.verdict = Judge(score, direction, options, rms_per_band, floor);
   return score;
 }
 

@@ -4,7 +4,10 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <map>
 #include <optional>
+#include <string>
 #include <string_view>
 
 #include "absl/status/status.h"
@@ -138,6 +141,11 @@ struct RegistrationOptions {
   // Verify the result against the target (registration/verification.h) whatever the method:
   // RegistrationResult::verification says whether it can be trusted.
   bool verify = true;
+  // Length parameters (the `..._d` rows of the parameter table) given in the clouds' own units,
+  // taken as metres ("--max-distance 1m"), by row name ("filter.max_distance_d"): one replaces
+  // its field. Register converts them to units of the target's d (ResolveLengths, parameters.h)
+  // and reports the converted values.
+  std::map<std::string, double, std::less<>> absolute_lengths;
 };
 
 // Upper bounds that keep one registration's time and memory bounded by its parameters (see

@@ -57,7 +57,22 @@ struct ParameterSpec {
   // Text as the CLI takes it ("5", "true", "seed-until-converged", "auto").
   std::string Format(const ParameterValue& value) const;
   absl::StatusOr<ParameterValue> Parse(std::string_view text, std::string_view field) const;
+  // A length in units of d (the target's mean spacing), which may also be given in the clouds'
+  // units (RegistrationOptions::absolute_lengths).
+  bool IsLength() const { return type == ParameterType::kDouble && name.ends_with("_d"); }
 };
+
+// Sets `spec`'s parameter in `options` from text as the CLI and Python take it: a value of its
+// type, "auto" where allowed, and for a length also a value with a unit: "5d" (units of d),
+// "1m", "30cm", "5mm" (the clouds' coordinates read as metres; kept in absolute_lengths until
+// the target is known). INVALID_ARGUMENT naming `field` otherwise.
+absl::Status SetParameterFromText(RegistrationOptions& options, const ParameterSpec& spec,
+                                  std::string_view text, std::string_view field);
+
+// `options` with every absolute length converted to units of `d` (absolute_lengths then empty).
+// INVALID_ARGUMENT naming the parameter, its value in both units and d when the converted value
+// is out of its row's range, or when a name is not a length row.
+absl::StatusOr<RegistrationOptions> ResolveLengths(const RegistrationOptions& options, double d);
 
 // Every registration parameter, in help order.
 std::span<const ParameterSpec> ParameterTable();

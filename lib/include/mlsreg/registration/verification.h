@@ -14,12 +14,13 @@
 //     source's; at least one median spacing of the target. It is generous on purpose: it tells
 //     the overlap from chance, the pull below tells how precisely the pose sits.
 // A right pose explains most of the overlap, its inliers' residuals concentrate inside the band,
-// and it explains the overlap equally in every direction of motion. The direction test catches a
-// pose slid along a road or a corridor: the ground and the facades still agree, but the few
-// samples that constrain the slide (poles, cars, building ends) do not. Each of the six
-// directions of rigid motion (eigen-directions of the point-to-plane information of the covered
-// samples) is judged by the samples whose residual it moves most; a direction the samples barely
-// constrain cannot be verified at all.
+// and the agreeing samples fix every direction of motion: along each, the pose's standard error
+// (their residual RMS over the square root of their point-to-plane information there) is at
+// most one noise sigma. This catches a pose slid along a road or a corridor: the ground and the
+// facades still agree, but the few samples that fix the slide (poles, building ends) do not; it
+// counts all of them together, so a long street whose few cross structures fix the pose well
+// verifies, and one moving car among them does not decide. A direction that not even the
+// covered samples fix (a bare road, a plane) cannot be verified at all.
 // Last, the pull: a right pose is where the data put it. One point-to-plane step from it would
 // explain only noise (about 6 / inliers of the residuals' sum of squares), and settling (a few
 // such steps on the target's surface) moves the inliers by its registration precision, a
@@ -47,14 +48,18 @@ struct VerificationOptions {
   // A uniform spread of residuals over the band has an RMS of 0.58 band; a real fit's (Gaussian,
   // even with the noise underestimated twofold) at most about 0.45.
   double max_rms_per_band = 0.5;
-  // The worst direction's inlier fraction must be at least this share of the overall one...
-  double min_direction_ratio = 0.5;
-  // ...among the samples whose residual a unit motion along it moves by at least this share of
-  // the top percentile's (rotations in units of the samples' RMS radius about their centre)...
+  // Every direction of motion must be fixed by the agreeing samples to a standard error of at
+  // most this many noise sigmas of the band (band / band_per_noise): the band then holds the
+  // pose to about three standard errors. The error is the inliers' residual RMS over the square
+  // root of their point-to-plane information along the direction.
+  double max_direction_error_sigmas = 1.0;
+  // ...and its information must be real: the product of the source's and the target's normals
+  // (whose noise is independent) summed over the agreeing samples must exceed this many times
+  // its own scatter (a z-score: a bare road's noise-tilted normals give about 0 +- 1).
+  double min_direction_z = 3.0;
+  // The samples reported as constraining the weakest direction: those it moves by at least this
+  // share of the top percentile's sensitivity (rotations in units of the samples' RMS radius).
   double direction_sensitivity = 0.5;
-  // ...and a direction whose information per covered sample is below this (as if fewer than 1 %
-  // of the samples faced it squarely) is unconstrained: the pose cannot be verified along it.
-  double min_direction_strength = 0.01;
   // The pose is pulled when one rigid motion would remove more than this share of the inliers'
   // squared residuals (a right pose's residuals are noise: about 6 / inliers of them).
   double max_pull_fraction = 0.1;
@@ -67,12 +72,14 @@ struct VerificationOptions {
 
 enum class Verdict {
   kVerified,
-  kTooLittleOverlap,    // too few covered samples
-  kLowAgreement,        // too small a share of the overlap lies on the surface
-  kDiffuseResiduals,    // the inliers' residuals spread over the band (chance overlap)
-  kDirectionDisagrees,  // the samples that constrain one direction of motion disagree
-  kUnconstrained,       // the data do not constrain one direction of motion
-  kPulled,              // one small rigid motion would remove much of the residuals
+  kTooLittleOverlap,  // too few covered samples
+  kLowAgreement,      // too small a share of the overlap lies on the surface
+  kDiffuseResiduals,  // the inliers' residuals spread over the band (chance overlap)
+  // The agreeing samples do not fix one direction of motion within a noise sigma, though the
+  // covered ones would: the samples that would fix it disagree (a pose slid along a road).
+  kDirectionDisagrees,
+  kUnconstrained,  // not even the covered samples fix one direction of motion
+  kPulled,         // one small rigid motion would remove much of the residuals
 };
 std::string_view VerdictName(Verdict verdict);  // "verified", "too_little_overlap", ...
 const EnumNames& VerdictNames();                // wire enum "Verdict"
@@ -100,11 +107,15 @@ struct VerificationScore {
   // The RMS distance the inliers travel when the pose settles where the data put it (a few
   // point-to-plane steps on the target's surface).
   double settle_displacement = 0.0;
-  // The direction whose constraining samples agree least: its inlier fraction, how many
-  // samples constrain it, and the direction (rotation axis scaled by its share, translation).
-  double worst_direction_fraction = 0.0;
+  // The direction of motion the agreeing samples fix least (rotation axis scaled by its share of
+  // the lever, then translation), the pose's standard error along it (absolute: a rotation as
+  // the displacement at the samples' RMS radius; infinite when no agreeing sample constrains
+  // it), the covered samples' information along it per covered sample, and how many covered
+  // samples constrain it most and the share of them that agree.
+  double worst_direction_error = 0.0;
+  double worst_direction_strength = 0.0;
   int worst_direction_samples = 0;
-  double worst_direction_strength = 0.0;  // its information per covered sample
+  double worst_direction_fraction = 0.0;
   Eigen::Matrix<double, 6, 1> worst_direction = Eigen::Matrix<double, 6, 1>::Zero();
   Verdict verdict = Verdict::kTooLittleOverlap;
 
