@@ -58,8 +58,7 @@ absl::Status ValidateOptions(const RegistrationOptions& options) {
       return absl::InvalidArgumentError(
           absl::StrCat("absolute_lengths: ", name, " is not a length parameter"));
     }
-    const ParameterRange& range = spec->range;  // its lower bound holds in any unit
-    if (!std::isfinite(metres) || !(range.min_open ? metres > range.min : metres >= range.min)) {
+    if (!std::isfinite(metres) || !spec->range.AboveMin(metres)) {
       return absl::InvalidArgumentError(absl::StrCat(name, " = ", metres, " m ", spec->Rule()));
     }
   }

@@ -285,8 +285,7 @@ absl::Status ParameterSpec::Check(const ParameterValue& value, std::string_view 
       } else {
         return bad();
       }
-      const bool above_min = range.min_open ? v > range.min : v >= range.min;
-      if (!std::isfinite(v) || !above_min || !(v <= range.max)) return bad();
+      if (!std::isfinite(v) || !range.AboveMin(v) || !(v <= range.max)) return bad();
       return absl::OkStatus();
     }
   }
@@ -368,17 +367,18 @@ absl::Status SetParameterFromText(RegistrationOptions& options, const ParameterS
       if (!number.ends_with(unit.suffix)) continue;
       number.remove_suffix(unit.suffix.size());
       while (!number.empty() && number.back() == ' ') number.remove_suffix(1);
-      double value;
-      const char* end = number.data() + number.size();
-      const auto [p, ec] = std::from_chars(number.data(), end, value);
-      const bool above_min = spec.range.min_open ? value > spec.range.min : value >= spec.range.min;
-      if (number.empty() || ec != std::errc() || p != end || !std::isfinite(value) || !above_min) {
+      ParameterValue value;
+      const bool valid = ParseNumber<double>(number, value) &&
+                         std::isfinite(std::get<double>(value)) &&
+                         spec.range.AboveMin(std::get<double>(value));
+      if (!valid) {
         return absl::InvalidArgumentError(absl::StrCat(
             std::string(field), ": '", std::string(text), "' is not valid: ", spec.Rule(),
             " in units of d, or a length in m, cm or mm ",
             spec.range.min_open ? "(> " : "(>= ", Bound(spec.range.min), ")"));
       }
-      options.absolute_lengths.insert_or_assign(std::string(spec.name), value * unit.metres);
+      options.absolute_lengths.insert_or_assign(std::string(spec.name),
+                                                std::get<double>(value) * unit.metres);
       return absl::OkStatus();
     }
     if (number.ends_with('d')) {

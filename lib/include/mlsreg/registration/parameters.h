@@ -34,6 +34,8 @@ struct ParameterRange {
   double min = -std::numeric_limits<double>::infinity();
   double max = std::numeric_limits<double>::infinity();
   bool min_open = false;  // (min, ...] instead of [min, ...]
+  // Above the lower bound (for a length, in any unit: every length's bound is 0).
+  bool AboveMin(double v) const { return min_open ? v > min : v >= min; }
 };
 
 struct ParameterSpec {
