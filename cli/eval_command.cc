@@ -129,6 +129,9 @@ const char* kFixedColumns[] = {"manifest",
                                "auto_fraction",
                                "auto_rmse_d",
                                "auto_inlier_distance_d",
+                               "auto_finish",
+                               "auto_finish_kept",
+                               "auto_finish_moved_d",
                                "label"};
 
 // `text` right-aligned in `width`, or "-" when there is no value (every run failed to run).
@@ -240,8 +243,11 @@ std::vector<std::string> OutcomeCells(const std::string& path, const Registratio
     f.push_back(absl::StrFormat("%.4f", a->verification.inlier_fraction));
     f.push_back(absl::StrFormat("%.4f", a->verification.rmse_d));
     f.push_back(absl::StrFormat("%.4f", a->verification.inlier_distance_d));
+    f.push_back(std::string(FinishKindName(a->finish.kind)));
+    f.push_back(a->finish.kept ? "1" : "0");
+    f.push_back(absl::StrFormat("%.4f", a->finish.moved / r.sampling_distance));
   } else {
-    f.insert(f.end(), 7, std::string());
+    f.insert(f.end(), 10, std::string());
   }
   f.push_back(label);
   return f;

@@ -42,7 +42,7 @@ bottom.grid(True, alpha=0.3)
 # final one) and label them.
 stages = data["stage"]
 start = 0
-shades = {"start": "#eeeeee", "candidate": "#fff3e0", "final": "#e8f5e9"}
+shades = {"start": "#eeeeee", "candidate": "#fff3e0", "final": "#e8f5e9", "finish": "#e3f2fd"}
 for i in range(1, len(stages) + 1):
     if i == len(stages) or stages[i] != stages[start]:
         if stages[start] in shades and len(set(stages)) > 1:

@@ -15,6 +15,18 @@ nlohmann::json MatrixJson(const Matrix4& m) {
   }
   return values;
 }
+
+// Which finish polished auto's result and why (registration/finish.h); d: the target's.
+std::string FinishLine(const FinishReport& f, double d) {
+  if (f.kind == FinishKind::kNone) return "auto finish: none (the result did not verify)\n";
+  const bool clean = f.kind == FinishKind::kPlaneToPlane;
+  return absl::StrFormat(
+      "auto finish: %s (noise %.2f d %s %.2f d, the MLS fit's floor), %d points, %d its, "
+      "moved %.3f d: %s\n",
+      FinishKindName(f.kind), f.noise_d, clean ? "<" : ">=", f.crossover_d, f.samples, f.iterations,
+      d > 0.0 ? f.moved / d : 0.0,
+      f.kept ? "kept" : "not kept (more than one noise sigma from the verified pose)");
+}
 }  // namespace
 
 std::string FormatIteration(const IterationReport& r) {
@@ -96,6 +108,7 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
           100.0 * c.score.inlier_fraction, c.score.rmse_d, c.iterations, c.seconds,
           static_cast<int>(k) == a->chosen ? "  <- chosen" : "");
     }
+    out += FinishLine(a->finish, result.sampling_distance);
   }
   const ScaleReport& sc = result.scales;
   if (sc.working_voxel > 0.0) {
@@ -234,7 +247,16 @@ nlohmann::json ResultJson(std::string_view method, const RegistrationResult& res
                   {{"start", a->timings.start},
                    {"global", a->timings.global},
                    {"candidates", a->timings.candidates},
-                   {"final", a->timings.final}}}};
+                   {"final", a->timings.final}}},
+                 {"finish",
+                  {{"kind", std::string(FinishKindName(a->finish.kind))},
+                   {"noise_d", a->finish.noise_d},
+                   {"crossover_d", a->finish.crossover_d},
+                   {"samples", a->finish.samples},
+                   {"iterations", a->finish.iterations},
+                   {"kept", a->finish.kept},
+                   {"moved", a->finish.moved},
+                   {"seconds", a->finish.seconds}}}};
   }
   if (error) {
     j["ground_truth"] = {{"rmse_d", error->rmse_d},

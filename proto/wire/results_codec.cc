@@ -91,6 +91,16 @@ void AutoReportToProto(const AutoReport& r, v1::AutoReport* out) {
   out->set_global_seconds(r.timings.global);
   out->set_candidates_seconds(r.timings.candidates);
   out->set_final_seconds(r.timings.final);
+  v1::FinishReport* finish = out->mutable_finish();
+  finish->set_kind(
+      static_cast<v1::FinishKind>(EnumToWire(FinishKindNames(), static_cast<int>(r.finish.kind))));
+  finish->set_noise_sigma_d(r.finish.noise_d);
+  finish->set_crossover_d(r.finish.crossover_d);
+  finish->set_samples(r.finish.samples);
+  finish->set_iterations(r.finish.iterations);
+  finish->set_kept(r.finish.kept);
+  finish->set_moved(r.finish.moved);
+  finish->set_seconds(r.finish.seconds);
 }
 
 AutoReport AutoReportFromProto(const v1::AutoReport& p) {
@@ -113,6 +123,16 @@ AutoReport AutoReportFromProto(const v1::AutoReport& p) {
   r.early_exit = p.early_exit();
   r.feature_matches = p.feature_matches();
   r.timings = {p.start_seconds(), p.global_seconds(), p.candidates_seconds(), p.final_seconds()};
+  const v1::FinishReport& finish = p.finish();
+  r.finish.kind = EnumFromWire(FinishKindNames(), finish.kind(), FinishKind::kNone, "finish.kind")
+                      .value_or(FinishKind::kNone);
+  r.finish.noise_d = finish.noise_sigma_d();
+  r.finish.crossover_d = finish.crossover_d();
+  r.finish.samples = finish.samples();
+  r.finish.iterations = finish.iterations();
+  r.finish.kept = finish.kept();
+  r.finish.moved = finish.moved();
+  r.finish.seconds = finish.seconds();
   return r;
 }
 

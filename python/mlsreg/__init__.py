@@ -116,7 +116,8 @@ class IterationReport:
     """One ICP iteration, as the progress callback and stream see it."""
 
     iteration: int
-    stage: str  # "single", or for method auto "start", "global", "candidate", "final"
+    # "single", or for method auto "coarse", "start", "global", "candidate", "final", "finish"
+    stage: str
     candidate: int  # auto: the candidate refined, else -1
     rmse: float  # of this iteration's accepted correspondences, absolute units
     rmse_d: float  # the same in units of the target's sampling distance d

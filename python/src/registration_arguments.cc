@@ -81,6 +81,12 @@ py::dict AutoToPython(const AutoReport& report) {
         py::arg("score") = ScoreToPython(c.score), py::arg("seconds") = c.seconds));
   }
   const AutoStageTimings& t = report.timings;
+  const FinishReport& f = report.finish;
+  const py::dict finish(py::arg("kind") = std::string(FinishKindName(f.kind)),
+                        py::arg("noise_d") = f.noise_d, py::arg("crossover_d") = f.crossover_d,
+                        py::arg("samples") = f.samples, py::arg("iterations") = f.iterations,
+                        py::arg("kept") = f.kept, py::arg("moved") = f.moved,
+                        py::arg("seconds") = f.seconds);
   return py::dict(py::arg("candidates") = candidates, py::arg("chosen") = report.chosen,
                   py::arg("verified") = report.verified,
                   py::arg("verification") = ScoreToPython(report.verification),
@@ -88,7 +94,8 @@ py::dict AutoToPython(const AutoReport& report) {
                   py::arg("feature_matches") = report.feature_matches,
                   py::arg("timings") =
                       py::dict(py::arg("start") = t.start, py::arg("global") = t.global,
-                               py::arg("candidates") = t.candidates, py::arg("final") = t.final));
+                               py::arg("candidates") = t.candidates, py::arg("final") = t.final),
+                  py::arg("finish") = finish);
 }
 
 }  // namespace

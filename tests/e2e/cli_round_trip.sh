@@ -93,7 +93,11 @@ for j in (r, l):
     assert j["auto"]["verified"] and j["auto"]["early_exit"], j["auto"]
     assert len(j["auto"]["candidates"]) == 1 and j["auto"]["chosen"] == 0, j["auto"]
     assert [t["stage"] for t in j["trace"]][0] == "coarse", j["trace"][0]
-    assert j["trace"][-1]["stage"] == "start", j["trace"][-1]
+    stages = [t["stage"] for t in j["trace"]]
+    assert stages[-1] == "finish" and "start" in stages, stages
+    # The verified pose is polished by the finish the noise chooses, and says which and why.
+    f = j["auto"]["finish"]
+    assert f["kept"] and f["kind"] == ("plane-to-plane" if f["noise_d"] < f["crossover_d"] else "mls"), f
     assert j["verification"]["verified"] and j["verification"]["verdict"] == "verified", j
 assert r["verification"] == l["verification"], (r["verification"], l["verification"])
 PY

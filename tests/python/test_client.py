@@ -75,7 +75,8 @@ def test_a_batch_reports_each_job(client, bun000, near_start):
     outcomes = client.register_batch(jobs, concurrency=2)
     assert [o.ok for o in outcomes] == [True, False, True]
     assert isinstance(outcomes[1].error, LookupError) and "missing" in str(outcomes[1].error)
-    assert outcomes[2].result.iterations <= 4
+    # max_iterations caps each phase of auto: the coarse alignment, the refinement and the finish.
+    assert outcomes[2].result.iterations <= 6
 
 
 def test_bad_requests_raise_value_error(client, bun000):

@@ -117,6 +117,10 @@ def test_register_recovers_the_ground_truth(bun000, bunny_target, gt, near_start
     assert result.timings["total"] > 0
     assert result.sampling_distance == pytest.approx(bunny_target.sampling_distance)
     assert result.auto["early_exit"] and len(result.auto["candidates"]) == 1
+    # The verified pose is polished by the finish the clouds' noise chooses, and says which.
+    finish = result.auto["finish"]
+    assert finish["kind"] == ("plane-to-plane" if finish["noise_d"] < finish["crossover_d"] else "mls")
+    assert finish["kept"] and finish["samples"] > 2000 and finish["iterations"] >= 1
     assert result.verification["verdict"] == "verified" and result.verification["covered"] > 0
     # Verified means the agreeing samples fix every direction of motion to a standard error of at
     # most one noise sigma, a third of the band.

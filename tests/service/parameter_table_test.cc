@@ -93,6 +93,7 @@ TEST(ParameterTableTest, EnumTablesMatchTheWireEnums) {
   ExpectEnumMatchesWire(TerminationNames());
   ExpectEnumMatchesWire(StageNames());
   ExpectEnumMatchesWire(CandidateOriginNames());
+  ExpectEnumMatchesWire(FinishKindNames());
   ExpectEnumMatchesWire(VerdictNames());
 }
 

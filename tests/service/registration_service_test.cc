@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 
+#include "mlsreg/registration/finish.h"
 #include "mlsreg/registration/registration.h"
 #include "mlsreg/wire/convert.h"
 #include "service_test_support.h"
@@ -101,7 +102,20 @@ TEST_F(RegistrationServiceTest, InlineSourceAndDefaultsWork) {
   ASSERT_NE(outcome.accepted(), nullptr);
   EXPECT_EQ(outcome.accepted()->request_id().rfind("req-", 0), 0u);
   ASSERT_NE(outcome.result(), nullptr);
-  EXPECT_EQ(outcome.result()->num_samples(), 500);
+  // The refinement matched the 500 samples asked for; the finish then polished the verified
+  // pose over every source point, up to kFinishMaxSamples, and the result counts those.
+  int refinement_reports = 0;
+  for (const v1::Progress* p : outcome.progress()) {
+    if (p->stage() != v1::STAGE_START) continue;
+    const v1::CorrespondenceCounts& c = p->counts();
+    EXPECT_EQ(c.matched() + c.rejected_normal() + c.rejected_curvature() + c.rejected_distance() +
+                  c.invalid(),
+              500);
+    ++refinement_reports;
+  }
+  EXPECT_GT(refinement_reports, 0);
+  EXPECT_EQ(outcome.result()->num_samples(), kFinishMaxSamples);
+  EXPECT_EQ(outcome.result()->auto_report().finish().samples(), kFinishMaxSamples);
   EXPECT_FALSE(outcome.result()->has_ground_truth_error());
   ASSERT_TRUE(outcome.result()->has_auto_report());  // unspecified is auto
   EXPECT_TRUE(outcome.result()->auto_report().verified());
@@ -129,7 +143,8 @@ TEST_F(RegistrationServiceTest, AutoFromAHalfTurnStreamsItsStagesAndReportsItsCa
   EXPECT_EQ(stages[0], v1::STAGE_COARSE);
   EXPECT_EQ(stages[1], v1::STAGE_START);
   EXPECT_NE(std::find(stages.begin(), stages.end(), v1::STAGE_GLOBAL), stages.end());
-  EXPECT_EQ(stages.back(), v1::STAGE_FINAL);
+  EXPECT_EQ(stages[stages.size() - 2], v1::STAGE_FINAL);
+  EXPECT_EQ(stages.back(), v1::STAGE_FINISH);
 
   const v1::Result& result = *outcome.result();
   ASSERT_TRUE(result.has_auto_report());
@@ -137,6 +152,13 @@ TEST_F(RegistrationServiceTest, AutoFromAHalfTurnStreamsItsStagesAndReportsItsCa
   EXPECT_TRUE(report.verified());
   EXPECT_FALSE(report.early_exit());
   EXPECT_EQ(report.chosen(), local->auto_report->chosen);
+  // The finish that polished the verified pose crosses the wire as run in process.
+  EXPECT_EQ(report.finish().kind(), local->auto_report->finish.kind == FinishKind::kPlaneToPlane
+                                        ? v1::FINISH_KIND_PLANE_TO_PLANE
+                                        : v1::FINISH_KIND_MLS);
+  EXPECT_TRUE(report.finish().kept());
+  EXPECT_EQ(report.finish().samples(), local->auto_report->finish.samples);
+  EXPECT_DOUBLE_EQ(report.finish().noise_sigma_d(), local->auto_report->finish.noise_d);
   ASSERT_EQ(report.candidates_size(), static_cast<int>(local->auto_report->candidates.size()));
   EXPECT_EQ(report.candidates(0).origin(), v1::CANDIDATE_ORIGIN_START);
   EXPECT_EQ(report.candidates(report.chosen()).origin(), v1::CANDIDATE_ORIGIN_GLOBAL);

@@ -13,6 +13,7 @@
 #include "mlsreg/geometry/sampling.h"
 #include "mlsreg/io/io.h"
 #include "mlsreg/io/manifest.h"
+#include "mlsreg/registration/finish.h"
 #include "mlsreg/registration/global_candidates.h"
 #include "mlsreg/registration/registration.h"
 #include "mlsreg/registration/verification.h"
@@ -250,7 +251,7 @@ TEST(AutoMethodTest, NearTheTruthItAlignsTheVoxelCloudsThenRefinesWithoutAGlobal
   EXPECT_EQ(report.candidates.size(), 1u);
   EXPECT_EQ(report.chosen, 0);
   EXPECT_EQ(report.timings.global, 0.0);
-  EXPECT_EQ(stages, (std::vector<Stage>{Stage::kCoarse, Stage::kStart}));
+  EXPECT_EQ(stages, (std::vector<Stage>{Stage::kCoarse, Stage::kStart, Stage::kFinish}));
   const PoseError error = EvaluatePose(bunny.source.points, automatic->transform, bunny.truth,
                                        automatic->sampling_distance);
   EXPECT_LT(error.rmse_d, 1.0);
@@ -312,8 +313,10 @@ TEST(AutoMethodTest, FromAHalfTurnItFindsTheTruthAndSaysWhichCandidateWon) {
   EXPECT_EQ(stages[1], Stage::kStart);
   EXPECT_EQ(stages[2], Stage::kGlobal);
   EXPECT_EQ(stages[3], Stage::kCandidate);
-  EXPECT_EQ(stages.back(), Stage::kFinal);
-  EXPECT_EQ(result->trace.back().stage, Stage::kFinal);
+  ASSERT_TRUE(report.finish.kept);  // the chosen candidate's refinement, then its finish
+  EXPECT_EQ(stages[stages.size() - 2], Stage::kFinal);
+  EXPECT_EQ(stages.back(), Stage::kFinish);
+  EXPECT_EQ(result->trace.back().stage, Stage::kFinish);
   EXPECT_EQ(result->trace.back().candidate, report.chosen);
 }
 
@@ -330,13 +333,61 @@ TEST(AutoMethodTest, AnotherObjectIsNotVerified) {
   EXPECT_GT(result->auto_report->candidates.size(), 1u);  // it did look globally
 }
 
+// The finish follows the clouds' measured noise (registration/finish.h): plane-to-plane on clean
+// samples of a bumpy sheet, MLS when both clouds carry 2 d of noise. Each polishes the verified
+// pose over every source point, says which ran and why, and is more accurate than the
+// refinement it started from.
+TEST(AutoMethodTest, TheFinishFollowsTheNoiseAndPolishesTheVerifiedPose) {
+  const double d =
+      Target::Build(SampleBumpySurface(20'000, -1.0, 1.0, 1)).value()->sampling_distance();
+  const Matrix4 truth = RandomPerturbation(12.0, 0.1, Vec3::Zero(), 3);
+  for (const double noise_d : {0.0, 2.0}) {
+    SCOPED_TRACE(noise_d);
+    std::shared_ptr<const Target> target =
+        Target::Build(SampleBumpySurface(20'000, -1.0, 1.0, 1, noise_d * d)).value();
+    const PointCloud source =
+        Transformed(SampleBumpySurface(12'000, -0.8, 0.6, 2, noise_d * d), truth.inverse());
+    const Matrix4 start = RandomPerturbation(3.0, 3.0 * d, Vec3::Zero(), 4) * truth;
+    std::vector<Stage> stages;
+    RegistrationCallbacks callbacks;
+    callbacks.on_iteration = [&](const IterationReport& r) { stages.push_back(r.stage); };
+    RegistrationOptions options;
+    auto polished = Register(*target, source, start, options, callbacks);
+    options.automatic.finish = false;
+    auto refined = Register(*target, source, start, options);
+    ASSERT_TRUE(polished.ok()) << polished.status();
+    ASSERT_TRUE(refined.ok()) << refined.status();
+    ASSERT_TRUE(polished->verification.has_value() && polished->verification->verified());
+
+    const FinishReport& finish = polished->auto_report->finish;
+    EXPECT_EQ(finish.kind, noise_d == 0.0 ? FinishKind::kPlaneToPlane : FinishKind::kMls);
+    EXPECT_EQ(finish.kind, ChooseFinish(finish.noise_d));
+    EXPECT_EQ(finish.noise_d, std::max(polished->target_noise_d, polished->source_noise_d));
+    EXPECT_EQ(finish.crossover_d, kMlsFitFloorD);
+    EXPECT_EQ(finish.samples, 12'000);  // every source point
+    EXPECT_TRUE(finish.kept);
+    EXPECT_LE(finish.moved, polished->verification->inlier_distance / 3.0);
+    ASSERT_FALSE(stages.empty());
+    EXPECT_EQ(stages.back(), Stage::kFinish);
+    EXPECT_EQ(refined->auto_report->finish.kind, FinishKind::kNone);
+
+    ASSERT_EQ(polished->termination, Termination::kConverged);
+    const PoseError with = EvaluatePose(source.points, polished->transform, truth, d);
+    const PoseError without = EvaluatePose(source.points, refined->transform, truth, d);
+    std::printf(
+        "noise %.1f d: RMSE %.6f d with the finish (%d its, moved %.6f d), %.6f d without\n",
+        noise_d, with.rmse_d, finish.iterations, finish.moved / d, without.rmse_d);
+    EXPECT_LT(with.rmse_d, without.rmse_d);
+  }
+}
+
 // A stop requested in each stage ends the registration there: cancelled, with the report so far.
 TEST(AutoMethodTest, EveryStageCanBeCancelled) {
   const BunnyPair& bunny = Bunny();
   const Matrix4 start = PerturbedStart(bunny.source, bunny.truth, bunny.target->sampling_distance(),
                                        {180.0, 30.0, 2});
-  for (Stage stop_at :
-       {Stage::kCoarse, Stage::kStart, Stage::kGlobal, Stage::kCandidate, Stage::kFinal}) {
+  for (Stage stop_at : {Stage::kCoarse, Stage::kStart, Stage::kGlobal, Stage::kCandidate,
+                        Stage::kFinal, Stage::kFinish}) {
     SCOPED_TRACE(std::string(StageName(stop_at)));
     bool stop = false;
     int reports_after_stop = 0;

@@ -7,6 +7,8 @@
 //      verified, and the start competes with them.
 //   3. The best candidates are refined by MLS-SICP in turn until one verifies. When none does,
 //      the start's result is returned, not verified.
+//   4. A verified result is polished over every source point by the finish the clouds' noise
+//      chooses (registration/finish.h): plane-to-plane on clean data, MLS on noisy data.
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -15,6 +17,7 @@
 #include "coarse_alignment.h"
 #include "method_runners.h"
 #include "mlsreg/geometry/feature_cloud.h"
+#include "mlsreg/registration/finish.h"
 #include "mlsreg/registration/global_candidates.h"
 #include "mlsreg/registration/verification.h"
 
@@ -60,6 +63,9 @@ class AutoRegistration {
       : problem_(problem), target_(*problem.target), params_(problem.options->automatic) {
     full_ = *problem.options;
     full_.method = Method::kMlsSicp;
+    // With a finish to come, the refinements project onto the target's patches only: the
+    // finish, over every source point, decides the last digits.
+    if (params_.finish) full_.mls.projection = MlsProjectionKind::kPatches;
     base_ = problem;
     if (!base_.source_tree) {
       own_source_tree_.emplace(problem.source->points);
@@ -87,7 +93,7 @@ class AutoRegistration {
     best_score_ = report_.candidates[0].score;
     if (best_score_.verified() && best_score_.covered_fraction() >= params_.accept_fraction) {
       report_.early_exit = true;
-      return Finish(std::move(start));
+      return Polish(std::move(start));
     }
 
     // Stage 2: global candidates from feature matches, each aligned on the voxel clouds.
@@ -168,7 +174,7 @@ class AutoRegistration {
       best = std::move(start);
     }
     report_.timings.final = Seconds(phase);
-    return Finish(std::move(*best));
+    return Polish(std::move(*best));
   }
 
  private:
@@ -206,6 +212,53 @@ class AutoRegistration {
     absl::StatusOr<RegistrationResult> result = RunSparseIcp(problem);
     if (result.ok()) Stamp(*result, stage, candidate);
     return result;
+  }
+
+  // Stage 4: a verified result polished by the finish the noise chooses, over every source point
+  // (up to kFinishMaxSamples); its pose is kept when it ran on enough pairs and moves the
+  // verification samples by at most one noise sigma of the band, so the verdict still holds.
+  absl::StatusOr<RegistrationResult> Polish(RegistrationResult result) {
+    if (!params_.finish || !best_score_.verified()) return Finish(std::move(result));
+    const Clock::time_point phase = Clock::now();
+    FinishReport& finish = report_.finish;
+    finish.noise_d = problem_.noise_d;
+    finish.crossover_d = kMlsFitFloorD;
+    finish.kind = ChooseFinish(problem_.noise_d);
+    RegistrationOptions options = full_;
+    options.num_samples = kFinishMaxSamples;
+    options.mls.projection = MlsProjectionKind::kPatches;
+    const RegistrationCallbacks callbacks =
+        StampedCallbacks(*problem_.callbacks, Stage::kFinish, report_.chosen);
+    RegistrationProblem problem = base_;
+    problem.initial = result.transform;
+    problem.options = &options;
+    problem.callbacks = &callbacks;
+    problem.iteration_offset = result.iterations;
+    absl::StatusOr<RegistrationResult> polished =
+        finish.kind == FinishKind::kMls ? RunSparseIcp(problem) : RunPlaneToPlaneFinish(problem);
+    if (!polished.ok()) return polished.status();
+    if (polished->termination == Termination::kCancelled) return Cancelled(std::move(result));
+    Stamp(*polished, Stage::kFinish, report_.chosen);
+    finish.samples = polished->num_samples;
+    finish.iterations = polished->iterations;
+    finish.moved = RmsDisplacement(source_voxels_.points, result.transform, polished->transform);
+    finish.kept = polished->termination != Termination::kTooFewCorrespondences &&
+                  finish.moved <= best_score_.inlier_distance / 3.0;
+    if (finish.kept) AppendPhase(result, *std::move(polished));
+    finish.seconds = Seconds(phase);
+    return Finish(std::move(result));
+  }
+
+  static double RmsDisplacement(const std::vector<Vec3>& points, const Matrix4& a,
+                                const Matrix4& b) {
+    if (points.empty()) return 0.0;
+    const Matrix4 difference = b - a;  // b p - a p, affine in p
+    double sum = 0.0;
+    for (const Vec3& p : points) {
+      sum +=
+          (difference.topLeftCorner<3, 3>() * p + difference.topRightCorner<3, 1>()).squaredNorm();
+    }
+    return std::sqrt(sum / static_cast<double>(points.size()));
   }
 
   VerificationScore Verify(const Matrix4& transform) const {

@@ -1,9 +1,13 @@
 // Generalized ICP (Segal, Haehnel, Thrun 2009), plane-to-plane: each point's covariance is
 // flat along its local plane (epsilon across it), and a Gauss-Newton step minimises the
-// Mahalanobis distances of closest-point pairs under the combined covariances.
+// Mahalanobis distances of closest-point pairs under the combined covariances. Method `g-icp`
+// gates pairs at a fixed distance; auto's plane-to-plane finish gates each pair by the
+// neighbourhood of its target point (the points that defined its plane), a length that follows
+// the local sampling from a statue's millimetres to a street's far decimetres.
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <cmath>
+#include <optional>
 
 #include "icp_loop.h"
 #include "method_runners.h"
@@ -23,14 +27,19 @@ Eigen::Matrix3d Skew(const Vec3& v) {
 }
 
 // The plane-like covariance of the k nearest points to `at` (epsilon along the normal, 1 in the
-// plane); false when fewer than 3 neighbours or a degenerate neighbourhood.
-bool PlaneCovariance(const std::vector<Vec3>& points, const KdTree& tree, const Vec3& at, int k,
-                     double epsilon, Eigen::Matrix3d& covariance) {
+// plane) and the squared distance of the farthest of them; nullopt when fewer than 3 neighbours
+// or a degenerate neighbourhood.
+struct LocalPlane {
+  Eigen::Matrix3d covariance;
+  double radius_squared;
+};
+std::optional<LocalPlane> PlaneCovariance(const std::vector<Vec3>& points, const KdTree& tree,
+                                          const Vec3& at, int k, double epsilon) {
   constexpr int kMaxNeighbors = 64;
   std::uint32_t indices[kMaxNeighbors];
   double d2[kMaxNeighbors];
   const std::size_t found = tree.Knn(at, std::min(k, kMaxNeighbors), indices, d2);
-  if (found < 3) return false;
+  if (found < 3) return std::nullopt;
   Vec3 mean = Vec3::Zero();
   for (std::size_t i = 0; i < found; ++i) mean += points[indices[i]];
   mean /= static_cast<double>(found);
@@ -40,32 +49,42 @@ bool PlaneCovariance(const std::vector<Vec3>& points, const KdTree& tree, const 
     c.noalias() += d * d.transpose();
   }
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(c);
-  if (solver.info() != Eigen::Success || !(solver.eigenvalues()[1] > 0.0)) return false;
+  if (solver.info() != Eigen::Success || !(solver.eigenvalues()[1] > 0.0)) return std::nullopt;
   const Eigen::Matrix3d& v = solver.eigenvectors();
-  covariance = v * Vec3(epsilon, 1.0, 1.0).asDiagonal() * v.transpose();
-  return true;
+  return LocalPlane{v * Vec3(epsilon, 1.0, 1.0).asDiagonal() * v.transpose(), d2[found - 1]};
 }
+
+// The neighbourhood gate: a pair is kept within this share of the radius of its target point's
+// k neighbours (k = 10: about 0.6 of the local spacing, where a right pair lies). The whole
+// radius let pairs past the scan's boundaries and grazing edges in: on the tuning split at
+// sigma = 0 (auto from near the truth, 48 problems) the 90th percentile of RMSE/d was 0.022 with
+// the whole radius, 0.011 with half and 0.008 with a third (median 0.0054 / 0.0049 / 0.0044).
+constexpr double kGatePerNeighbourhood = 1.0 / 3.0;
 
 using Matrix6 = Eigen::Matrix<double, 6, 6>;
 using Vector6 = Eigen::Matrix<double, 6, 1>;
 
-// G-ICP's match (closest points, covariances) and Gauss-Newton solve.
+// G-ICP's match (closest points, covariances) and Gauss-Newton solve. A pair is kept when its
+// distance is within `max_distance`, or, when that is not positive, within the neighbourhood of
+// its target point.
 class GicpStep final : public internal::IcpStep {
  public:
-  GicpStep(const Target& target, const PointCloud& source, std::vector<Vec3> samples,
-           const GicpParams& params)
+  GicpStep(const Target& target, const PointCloud& source, const KdTree& source_tree,
+           std::vector<Vec3> samples, const GicpParams& params, double max_distance)
       : target_(target),
         params_(params),
         samples_(std::move(samples)),
         source_cov_(samples_.size()),
         source_ok_(samples_.size()),
         target_cov_(target.points().size()),
+        target_gate_squared_(target.points().size()),
         target_state_(target.points().size(), -1),
-        max_distance_squared_(std::pow(params.max_distance_d * target.sampling_distance(), 2)) {
-    const KdTree source_tree(source.points);
+        max_distance_squared_(max_distance > 0.0 ? max_distance * max_distance : 0.0) {
     for (std::size_t i = 0; i < samples_.size(); ++i) {
-      source_ok_[i] = PlaneCovariance(source.points, source_tree, samples_[i],
-                                      params.covariance_neighbors, params.epsilon, source_cov_[i]);
+      const std::optional<LocalPlane> plane = PlaneCovariance(
+          source.points, source_tree, samples_[i], params.covariance_neighbors, params.epsilon);
+      source_ok_[i] = plane.has_value();
+      if (plane) source_cov_[i] = plane->covariance;
     }
   }
 
@@ -82,20 +101,28 @@ class GicpStep final : public internal::IcpStep {
         ++report.counts.invalid;
         continue;
       }
-      if (nn.distance_squared > max_distance_squared_) {
+      if (max_distance_squared_ > 0.0 && nn.distance_squared > max_distance_squared_) {
         ++report.counts.rejected_distance;
         continue;
       }
       std::int8_t& state = target_state_[nn.index];
       if (state < 0) {  // target covariances are computed the first time a point is matched
-        state =
+        const std::optional<LocalPlane> plane =
             PlaneCovariance(target_points, target_.tree(), target_points[nn.index],
-                            params_.covariance_neighbors, params_.epsilon, target_cov_[nn.index])
-                ? 1
-                : 0;
+                            params_.covariance_neighbors, params_.epsilon);
+        state = plane ? 1 : 0;
+        if (plane) {
+          target_cov_[nn.index] = plane->covariance;
+          target_gate_squared_[nn.index] =
+              kGatePerNeighbourhood * kGatePerNeighbourhood * plane->radius_squared;
+        }
       }
       if (state == 0) {
         ++report.counts.invalid;
+        continue;
+      }
+      if (max_distance_squared_ == 0.0 && nn.distance_squared > target_gate_squared_[nn.index]) {
+        ++report.counts.rejected_distance;
         continue;
       }
       const Eigen::Matrix3d combined = target_cov_[nn.index] + r * source_cov_[i] * r.transpose();
@@ -129,7 +156,8 @@ class GicpStep final : public internal::IcpStep {
   std::vector<Eigen::Matrix3d> source_cov_;
   std::vector<std::uint8_t> source_ok_;
   std::vector<Eigen::Matrix3d> target_cov_;
-  std::vector<std::int8_t> target_state_;  // -1 unknown, 0 bad, 1 ok
+  std::vector<double> target_gate_squared_;  // each target point's neighbourhood radius, squared
+  std::vector<std::int8_t> target_state_;    // -1 unknown, 0 bad, 1 ok
   double max_distance_squared_;
   Matrix6 h_;
   Vector6 g_;
@@ -139,7 +167,12 @@ class GicpStep final : public internal::IcpStep {
 
 namespace internal {
 
-absl::StatusOr<RegistrationResult> RunGeneralizedIcp(const RegistrationProblem& problem) {
+namespace {
+
+// G-ICP with pairs gated at `max_distance` (absolute), or by their target point's neighbourhood
+// when that is not positive.
+absl::StatusOr<RegistrationResult> RunGicp(const RegistrationProblem& problem,
+                                           double max_distance) {
   const RegistrationOptions& options = *problem.options;
   RegistrationResult result;
   const double d = problem.target->sampling_distance();
@@ -147,7 +180,11 @@ absl::StatusOr<RegistrationResult> RunGeneralizedIcp(const RegistrationProblem& 
   SourceSamples sampled = SubsampleSource(*problem.source, options, result);
 
   const Clock::time_point phase = Clock::now();  // source covariances at the samples
-  GicpStep step(*problem.target, *problem.source, std::move(sampled.points), options.gicp);
+  std::optional<KdTree> own_tree;
+  if (!problem.source_tree) own_tree.emplace(problem.source->points);
+  const KdTree& source_tree = problem.source_tree ? *problem.source_tree : *own_tree;
+  GicpStep step(*problem.target, *problem.source, source_tree, std::move(sampled.points),
+                options.gicp, max_distance);
   result.timings.preprocessing = Seconds(phase);
 
   LoopSettings settings;
@@ -160,6 +197,17 @@ absl::StatusOr<RegistrationResult> RunGeneralizedIcp(const RegistrationProblem& 
              problem.start, result);
   result.timings.total = Seconds(problem.start);
   return result;
+}
+
+}  // namespace
+
+absl::StatusOr<RegistrationResult> RunGeneralizedIcp(const RegistrationProblem& problem) {
+  return RunGicp(problem,
+                 problem.options->gicp.max_distance_d * problem.target->sampling_distance());
+}
+
+absl::StatusOr<RegistrationResult> RunPlaneToPlaneFinish(const RegistrationProblem& problem) {
+  return RunGicp(problem, 0.0);
 }
 
 }  // namespace internal

@@ -75,6 +75,9 @@ absl::StatusOr<RegistrationResult> RunSmoothedTargetSicp(const RegistrationProbl
 // CP-SICP+MLS-SICP: unfiltered CP-SICP to convergence, then MLS-SICP from there.
 absl::StatusOr<RegistrationResult> RunCpThenMlsSicp(const RegistrationProblem& problem);
 absl::StatusOr<RegistrationResult> RunGeneralizedIcp(const RegistrationProblem& problem);
+// G-ICP's plane-to-plane step with each pair gated by its target point's neighbourhood (the
+// points that defined its plane) instead of gicp.max_distance_d: auto's finish on clean data.
+absl::StatusOr<RegistrationResult> RunPlaneToPlaneFinish(const RegistrationProblem& problem);
 absl::StatusOr<RegistrationResult> RunFastGlobalRegistration(const RegistrationProblem& problem);
 // auto: MLS-SICP from the start, else from global candidates, chosen by verification.
 absl::StatusOr<RegistrationResult> RunAuto(const RegistrationProblem& problem);

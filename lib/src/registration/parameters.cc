@@ -201,6 +201,10 @@ std::vector<ParameterSpec> MakeTable() {
           "auto.candidate_iterations", "auto-candidate-iterations", "auto_candidate_iterations",
           automatic, kClosed(1, 1000),
           "auto: iterations of each candidate's voxel-cloud alignment"),
+      Row<&O::automatic, &AutoParams::finish>(
+          "auto.finish", "no-auto-finish", "auto_finish", automatic, kAny,
+          "auto: keep the refinement's pose; do not polish a verified result over every source "
+          "point with the finish the noise chooses"),
       Row<&O::verify>("verify", "no-verify", "verify", common, kAny,
                       "skip verifying the result against the target (every method verifies)"),
   };

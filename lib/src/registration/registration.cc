@@ -37,6 +37,7 @@ const EnumNames& StageNames() {
       {static_cast<int>(Stage::kCandidate), "candidate", "CANDIDATE"},
       {static_cast<int>(Stage::kFinal), "final", "FINAL"},
       {static_cast<int>(Stage::kCoarse), "coarse", "COARSE"},
+      {static_cast<int>(Stage::kFinish), "finish", "FINISH"},
   };
   static constexpr EnumNames kNames{"Stage", "STAGE_", kValues};
   return kNames;
@@ -56,6 +57,18 @@ const EnumNames& CandidateOriginNames() {
 std::string_view CandidateOriginName(CandidateOrigin origin) {
   return NameOf(CandidateOriginNames(), origin);
 }
+
+const EnumNames& FinishKindNames() {
+  static constexpr EnumValueName kValues[] = {
+      {static_cast<int>(FinishKind::kNone), "none", "NONE"},
+      {static_cast<int>(FinishKind::kPlaneToPlane), "plane-to-plane", "PLANE_TO_PLANE"},
+      {static_cast<int>(FinishKind::kMls), "mls", "MLS"},
+  };
+  static constexpr EnumNames kNames{"FinishKind", "FINISH_KIND_", kValues};
+  return kNames;
+}
+
+std::string_view FinishKindName(FinishKind kind) { return NameOf(FinishKindNames(), kind); }
 
 namespace {
 

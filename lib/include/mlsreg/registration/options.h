@@ -50,6 +50,9 @@ struct AutoParams {
   // and pay for a global stage that confirms them.
   double accept_fraction = 0.8;
   int candidate_iterations = 30;  // the voxel-cloud alignment of each candidate
+  // A verified result is polished over every source point by the finish the clouds' noise
+  // chooses (registration/finish.h).
+  bool finish = true;
 };
 
 struct FgrParams {

@@ -22,8 +22,9 @@ enum class Stage {
   kCandidate,  // auto: the cheap refinement of a global candidate (IterationReport::candidate)
   kFinal,      // auto: the full refinement of the best candidate
   kCoarse,     // auto: voxel clouds aligned at the working resolution (registration/scales.h)
+  kFinish,     // auto: the chosen pose polished over every source point (registration/finish.h)
 };
-// "single", "start", "global", "candidate", "final", "coarse"
+// "single", "start", "global", "candidate", "final", "coarse", "finish"
 std::string_view StageName(Stage stage);
 const EnumNames& StageNames();  // wire enum "Stage"
 
@@ -83,6 +84,28 @@ struct AutoStageTimings {
   double final = 0.0;       // the full refinement of the winner
 };
 
+// Method auto's finish (registration/finish.h): how the chosen pose was polished.
+enum class FinishKind {
+  kNone,          // none ran: the pose did not verify, or the finish is switched off
+  kPlaneToPlane,  // G-ICP's plane-to-plane step on the raw points: clean data
+  kMls,           // MLS-SICP over every source point: noisy data
+};
+std::string_view FinishKindName(FinishKind kind);  // "none", "plane-to-plane", "mls"
+const EnumNames& FinishKindNames();                // wire enum "FinishKind"
+
+struct FinishReport {
+  FinishKind kind = FinishKind::kNone;
+  double noise_d = 0.0;      // the clouds' noise (the larger, units of d) that chose it
+  double crossover_d = 0.0;  // plane-to-plane below this noise, MLS from it on
+  int samples = 0;           // source points it used
+  int iterations = 0;
+  // Its pose replaced the refinement's. False when it moved the source's verification samples
+  // by more than one noise sigma of the band (RMS): a polish does not move a verified pose.
+  bool kept = false;
+  double moved = 0.0;  // that RMS displacement, absolute
+  double seconds = 0.0;
+};
+
 struct AutoReport {
   std::vector<AutoCandidate> candidates;  // [0] is the start
   int chosen = 0;                         // index of the winner
@@ -93,6 +116,7 @@ struct AutoReport {
   bool early_exit = false;         // the start verified well enough: no global stage ran
   int feature_matches = 0;         // matches the global stage drew from
   AutoStageTimings timings;
+  FinishReport finish;
 };
 
 // The lengths a registration worked at, all chosen from the data (absolute units, those of the
