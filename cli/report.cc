@@ -25,7 +25,7 @@ std::string FinishLine(const FinishReport& f, double d) {
       "moved %.3f d: %s\n",
       FinishKindName(f.kind), f.noise_d, clean ? "<" : ">=", f.crossover_d, f.samples, f.iterations,
       d > 0.0 ? f.moved / d : 0.0,
-      f.kept ? "kept" : "not kept (more than one noise sigma from the verified pose)");
+      f.kept ? "kept (verified)" : "not kept (did not verify; the refined pose is returned)");
 }
 }  // namespace
 

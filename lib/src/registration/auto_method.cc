@@ -215,8 +215,8 @@ class AutoRegistration {
   }
 
   // Stage 4: a verified result polished by the finish the noise chooses, over every source point
-  // (up to kFinishMaxSamples); its pose is kept when it ran on enough pairs and moves the
-  // verification samples by at most one noise sigma of the band, so the verdict still holds.
+  // (up to kFinishMaxSamples); its pose is kept when it ran on enough pairs and verifies in
+  // turn, so the verdict is always of the pose returned.
   absl::StatusOr<RegistrationResult> Polish(RegistrationResult result) {
     if (!params_.finish || !best_score_.verified()) return Finish(std::move(result));
     const Clock::time_point phase = Clock::now();
@@ -242,9 +242,14 @@ class AutoRegistration {
     finish.samples = polished->num_samples;
     finish.iterations = polished->iterations;
     finish.moved = RmsDisplacement(source_voxels_.points, result.transform, polished->transform);
-    finish.kept = polished->termination != Termination::kTooFewCorrespondences &&
-                  finish.moved <= best_score_.inlier_distance / 3.0;
-    if (finish.kept) AppendPhase(result, *std::move(polished));
+    if (polished->termination != Termination::kTooFewCorrespondences) {
+      VerificationScore score = Verify(polished->transform);
+      finish.kept = score.verified();
+      if (finish.kept) {
+        best_score_ = std::move(score);
+        AppendPhase(result, *std::move(polished));
+      }
+    }
     finish.seconds = Seconds(phase);
     return Finish(std::move(result));
   }

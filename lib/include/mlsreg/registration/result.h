@@ -99,10 +99,11 @@ struct FinishReport {
   double crossover_d = 0.0;  // plane-to-plane below this noise, MLS from it on
   int samples = 0;           // source points it used
   int iterations = 0;
-  // Its pose replaced the refinement's. False when it moved the source's verification samples
-  // by more than one noise sigma of the band (RMS): a polish does not move a verified pose.
+  // Its pose replaced the refinement's: it ran on enough pairs and verified in turn (the result's
+  // verification is then the finished pose's). False: the refinement's verified pose is kept.
   bool kept = false;
-  double moved = 0.0;  // that RMS displacement, absolute
+  double moved = 0.0;  // RMS displacement of the verification samples from the refined pose
+
   double seconds = 0.0;
 };
 
