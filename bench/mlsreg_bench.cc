@@ -15,6 +15,7 @@
 #include "mlsreg/multiview/merged_cloud.h"
 #include "mlsreg/registration/global_candidates.h"
 #include "mlsreg/registration/registration.h"
+#include "mlsreg/registration/verification.h"
 #include "support/synthetic.h"
 
 namespace mlsreg {
@@ -231,6 +232,31 @@ void BM_AutoMethod(benchmark::State& state) {
   state.counters["candidates"] = candidates;
 }
 BENCHMARK(BM_AutoMethod)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+// Method auto near the truth with its finish (argument 1, the default) and without it (0): what
+// polishing the verified pose over every source point, and verifying it again, costs.
+void BM_AutoFinish(benchmark::State& state) {
+  const BunnyPair& p = Pair();
+  const Matrix4 initial =
+      RandomPerturbation(10.0, 10.0 * p.target->sampling_distance(), Vec3::Zero(), 1) * p.truth;
+  RegistrationOptions options;  // auto, the default
+  options.automatic.finish = state.range(0) == 1;
+  for (auto _ : state) benchmark::DoNotOptimize(Register(*p.target, p.source, initial, options));
+}
+BENCHMARK(BM_AutoFinish)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+// The verification of the ground-truth pose alone (the source's noise estimate included), one
+// thread: what every result's verdict costs.
+void BM_VerifyPose(benchmark::State& state) {
+  const BunnyPair& p = Pair();
+  VerificationScore score;
+  for (auto _ : state) {
+    score = VerifyPose(*p.target, p.source, p.truth);
+    benchmark::DoNotOptimize(score);
+  }
+  state.counters["samples"] = score.samples;
+}
+BENCHMARK(BM_VerifyPose)->Unit(benchmark::kMillisecond);
 
 // MLS-SICP on the same problem with 1 or 2 threads (argument): the speed-up of one registration.
 void BM_MlsSicpThreads(benchmark::State& state) {

@@ -42,9 +42,9 @@ struct SurfaceHit {
 // them, where the nearest sample alone is biased toward `x`), with their normal when they span a
 // plane and their voxel's otherwise (on a LiDAR's far rings the nearest samples lie along one
 // ring, a line whose plane is anyone's guess).
-SurfaceHit HitSurface(const Target& target, const Vec3& x) {
+// `voxel`: the target's voxel nearest `x` (the caller's coverage test found it).
+SurfaceHit HitSurface(const Target& target, const Vec3& x, std::uint32_t voxel) {
   const VoxelCloud& voxels = target.voxel_cloud();
-  const std::uint32_t voxel = voxels.tree->Nearest(x).index;
   SurfaceHit hit;
   // Only a flat voxel's spread is noise; elsewhere it is mostly shape.
   if (voxels.valid[voxel] && voxels.planarity[voxel] >= kFlatVoxelPlanarity) {
@@ -136,14 +136,18 @@ void MeasurePull(std::span<const Pull> pulls, const Vec3& centre, double lever,
 }
 
 // Where the data move the pose: up to kSettleSteps point-to-plane steps on the target's
-// surface from it, each over the samples inside their band at the moved pose. Returns the RMS
-// distance the samples in `moved` (the inliers at the pose) travel. A right pose moves by its
-// registration precision; a pose turned or slid off the truth moves back toward it.
+// surface from it, each over the samples inside their band at the moved pose, ending early once
+// a step moves the samples by less than `tolerance`. Returns the RMS distance the samples in
+// `moved` (the inliers at the pose) travel. A right pose moves by its registration precision; a
+// pose turned or slid off the truth moves back toward it.
 constexpr int kSettleSteps = 6;
+// The settling ends when a step moves the samples by less than this share of a noise sigma (the
+// verdict compares the whole settling with about one sigma).
+constexpr double kSettleTolerancePerNoise = 0.01;
 template <typename BandOf>
 double SettleDisplacement(const Target& target, std::span<const Vec3> points,
                           std::span<const std::uint8_t> state, const RigidTransform& pose,
-                          const Vec3& centre, double lever, double coverage,
+                          const Vec3& centre, double lever, double coverage, double tolerance,
                           const BandOf& band_of) {
   const VoxelCloud& voxels = target.voxel_cloud();
   RigidTransform current = pose;
@@ -153,8 +157,9 @@ double SettleDisplacement(const Target& target, std::span<const Vec3> points,
     int used = 0;
     for (std::size_t i = 0; i < points.size(); ++i) {
       const Vec3 x = current * points[i];
-      if (voxels.tree->Nearest(x).distance_squared > coverage * coverage) continue;
-      const SurfaceHit hit = HitSurface(target, x);
+      const Neighbor voxel = voxels.tree->Nearest(x);
+      if (voxel.distance_squared > coverage * coverage) continue;
+      const SurfaceHit hit = HitSurface(target, x, voxel.index);
       if (hit.distance > band_of(hit) || !(hit.normal.squaredNorm() > 0.0)) continue;
       Vector6 j;
       j.head<3>() = (x - centre).cross(hit.normal) / lever;
@@ -170,7 +175,7 @@ double SettleDisplacement(const Target& target, std::span<const Vec3> points,
     increment.linear() = ExpSo3(omega);
     increment.translation() = centre - increment.linear() * centre + step.tail<3>();
     current = increment * current;
-    if (step.norm() < 1e-9 * lever) break;
+    if (step.norm() < tolerance) break;  // rotations in units of the lever: a sample's motion
   }
   double sum = 0.0;
   int count = 0;
@@ -269,11 +274,12 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   Vec3 centre = Vec3::Zero();
   for (std::size_t i = 0; i < points.size(); ++i) {
     const Vec3 x = pose * points[i];
-    if (voxels.tree->Nearest(x).distance_squared > coverage * coverage) continue;
+    const Neighbor voxel = voxels.tree->Nearest(x);
+    if (voxel.distance_squared > coverage * coverage) continue;
     state[i] = 1;
     ++score.covered;
     centre += x;
-    const SurfaceHit hit = HitSurface(target, x);
+    const SurfaceHit hit = HitSurface(target, x, voxel.index);
     target_normals[i] = hit.normal;
     const double local_band = band_of(hit);
     if (hit.distance > local_band) continue;
@@ -307,8 +313,10 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   const double lever = score.covered > 0 ? std::sqrt(radius_squared / score.covered) : 1.0;
   MeasurePull(pulls, centre, lever, score);
   if (score.inliers > 0) {
+    const double noise_sigma = score.inlier_distance / options.band_per_noise;
     score.settle_displacement =
-        SettleDisplacement(target, points, state, pose, centre, lever, coverage, band_of);
+        SettleDisplacement(target, points, state, pose, centre, lever, coverage,
+                           std::max(kSettleTolerancePerNoise * noise_sigma, 1e-9 * lever), band_of);
   }
   // Pass 3: how precisely the agreeing samples fix each direction of motion. The point-to-plane
   // information of a set of samples along a direction (the sum of (J . axis)^2, rotations in
