@@ -16,9 +16,14 @@ nlohmann::json MatrixJson(const Matrix4& m) {
   return values;
 }
 
-// Which finish polished auto's result and why (registration/finish.h); d: the target's.
-std::string FinishLine(const FinishReport& f, double d) {
-  if (f.kind == FinishKind::kNone) return "auto finish: none (the result did not verify)\n";
+// Which finish polished auto's result and why (registration/finish.h); `verified`: the
+// result's verdict; d: the target's.
+std::string FinishLine(const FinishReport& f, bool verified, double d) {
+  if (f.kind == FinishKind::kNone) {
+    // Only a result that did not verify skips an enabled finish.
+    return verified ? "auto finish: none (switched off)\n"
+                    : "auto finish: none (the result did not verify)\n";
+  }
   const bool clean = f.kind == FinishKind::kPlaneToPlane;
   return absl::StrFormat(
       "auto finish: %s (noise %.2f d %s %.2f d, the MLS fit's floor), %d points, %d its, "
@@ -108,7 +113,7 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
           100.0 * c.score.inlier_fraction, c.score.rmse_d, c.iterations, c.seconds,
           static_cast<int>(k) == a->chosen ? "  <- chosen" : "");
     }
-    out += FinishLine(a->finish, result.sampling_distance);
+    out += FinishLine(a->finish, a->verified, result.sampling_distance);
   }
   const ScaleReport& sc = result.scales;
   if (sc.working_voxel > 0.0) {
