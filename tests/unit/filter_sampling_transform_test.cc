@@ -149,6 +149,20 @@ TEST(TransformTest, PerturbationHasExactAngleAndOffsetAndIsSeeded) {
   EXPECT_FALSE(m.isApprox(RandomPerturbation(10.0, 0.5, center, 78)));
 }
 
+// The RMS distance between two poses of the same points: a pure offset is its length; a turn
+// by 90 degrees about z moves the unit points (1,0,0) and (0,1,0) by sqrt(2) each.
+TEST(TransformTest, RmsDistanceBetweenPosesOfTheSamePoints) {
+  const std::vector<Vec3> points = {Vec3(1, 0, 0), Vec3(0, 1, 0)};
+  Matrix4 shifted = Matrix4::Identity();
+  shifted.topRightCorner<3, 1>() = Vec3(0.3, 0.0, 0.4);
+  EXPECT_NEAR(RmsDistanceBetween(points, Matrix4::Identity(), shifted), 0.5, 1e-12);
+  Matrix4 turned = Matrix4::Identity();
+  turned.topLeftCorner<3, 3>() << 0, -1, 0, 1, 0, 0, 0, 0, 1;
+  EXPECT_NEAR(RmsDistanceBetween(points, Matrix4::Identity(), turned), std::sqrt(2.0), 1e-12);
+  EXPECT_NEAR(RmsDistanceBetween(points, shifted, shifted), 0.0, 1e-15);
+  EXPECT_EQ(RmsDistanceBetween({}, Matrix4::Identity(), shifted), 0.0);
+}
+
 TEST(MetricsTest, RmseOfPureTranslationIsItsLength) {
   std::vector<Vec3> points{Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 5, 0)};
   Matrix4 truth = Matrix4::Identity();

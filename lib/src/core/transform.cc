@@ -148,4 +148,14 @@ Matrix4 RandomPerturbation(double angle_deg, double translation, const Vec3& cen
   return m;
 }
 
+double RmsDistanceBetween(const std::vector<Vec3>& points, const Matrix4& a, const Matrix4& b) {
+  if (points.empty()) return 0.0;
+  const Matrix4 difference = b - a;  // b p - a p, affine in p
+  double sum = 0.0;
+  for (const Vec3& p : points) {
+    sum += (difference.topLeftCorner<3, 3>() * p + difference.topRightCorner<3, 1>()).squaredNorm();
+  }
+  return std::sqrt(sum / static_cast<double>(points.size()));
+}
+
 }  // namespace mlsreg

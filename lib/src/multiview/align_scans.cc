@@ -101,14 +101,6 @@ std::vector<std::pair<int, int>> CandidatePairs(PairPolicy policy, int n) {
   return pairs;
 }
 
-// RMS distance of `points` under a and under b.
-double RmsBetween(const std::vector<Vec3>& points, const Matrix4& a, const Matrix4& b) {
-  if (points.empty()) return 0.0;
-  double sum = 0.0;
-  for (const Vec3& p : points) sum += (Apply(a, p) - Apply(b, p)).squaredNorm();
-  return std::sqrt(sum / static_cast<double>(points.size()));
-}
-
 double RotationDegrees(const Matrix4& m) {
   const Eigen::AngleAxisd aa(Eigen::Matrix3d(m.topLeftCorner<3, 3>()));
   return std::abs(aa.angle()) * 180.0 / M_PI;
@@ -318,12 +310,11 @@ absl::StatusOr<AlignResult> AlignTargets(const std::vector<std::shared_ptr<const
             const VoxelCloud voxels = BuildVoxelCloud(
                 targets[j]->points(), targets[i]->voxel_cloud().voxel, std::nullopt);
             const double d_i = targets[i]->sampling_distance();
-            edge.verification =
-                edge.registration.verification
-                    ? *edge.registration.verification
-                    : VerifyAlignment(*targets[i], voxels, edge.relative,
-                                      {targets[i]->noise().sigma_d * d_i,
-                                       targets[j]->noise().sigma_d * d_i});
+            edge.verification = edge.registration.verification
+                                    ? *edge.registration.verification
+                                    : VerifyAlignment(*targets[i], voxels, edge.relative,
+                                                      {targets[i]->noise().sigma_d * d_i,
+                                                       targets[j]->noise().sigma_d * d_i});
             edge.overlap = edge.verification.explained_fraction;
             const Information info = EdgeInformation(*targets[i], samples[j], edge.relative, d);
             edge.information = info.matrix;
@@ -370,13 +361,14 @@ absl::StatusOr<AlignResult> AlignTargets(const std::vector<std::shared_ptr<const
   // 5. What the graph changed: drift of the chain, and the loop's closure.
   for (int i = 0; i < n; ++i) {
     result.chain_deviation_d.push_back(
-        RmsBetween(targets[i]->points(), result.chained_poses[i], result.poses[i]) / d);
+        RmsDistanceBetween(targets[i]->points(), result.chained_poses[i], result.poses[i]) / d);
   }
   if (options.pairs == PairPolicy::kLoop && n > 2) {
     Matrix4 loop = Matrix4::Identity();
     for (const AlignEdge& e : result.edges) loop = loop * e.relative;  // (0,1) ... (n-1,0)
     result.loop_closure_rotation_deg = RotationDegrees(loop);
-    result.loop_closure_error_d = RmsBetween(targets[0]->points(), loop, Matrix4::Identity()) / d;
+    result.loop_closure_error_d =
+        RmsDistanceBetween(targets[0]->points(), loop, Matrix4::Identity()) / d;
     result.loop_closure_exceeded =
         result.loop_closure_rotation_deg > options.max_loop_closure_deg ||
         result.loop_closure_error_d > options.max_loop_closure_d;

@@ -241,7 +241,7 @@ class AutoRegistration {
     Stamp(*polished, Stage::kFinish, report_.chosen);
     finish.samples = polished->num_samples;
     finish.iterations = polished->iterations;
-    finish.moved = RmsDisplacement(source_voxels_.points, result.transform, polished->transform);
+    finish.moved = RmsDistanceBetween(source_voxels_.points, result.transform, polished->transform);
     if (polished->termination != Termination::kTooFewCorrespondences) {
       VerificationScore score = Verify(polished->transform);
       finish.kept = score.verified();
@@ -252,18 +252,6 @@ class AutoRegistration {
     }
     finish.seconds = Seconds(phase);
     return Finish(std::move(result));
-  }
-
-  static double RmsDisplacement(const std::vector<Vec3>& points, const Matrix4& a,
-                                const Matrix4& b) {
-    if (points.empty()) return 0.0;
-    const Matrix4 difference = b - a;  // b p - a p, affine in p
-    double sum = 0.0;
-    for (const Vec3& p : points) {
-      sum +=
-          (difference.topLeftCorner<3, 3>() * p + difference.topRightCorner<3, 1>()).squaredNorm();
-    }
-    return std::sqrt(sum / static_cast<double>(points.size()));
   }
 
   VerificationScore Verify(const Matrix4& transform) const {

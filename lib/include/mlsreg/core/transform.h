@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
@@ -34,5 +35,8 @@ std::string FormatTransform(const Matrix4& m);
 // uniformly random direction. Deterministic for a given seed on every platform.
 Matrix4 RandomPerturbation(double angle_deg, double translation, const Vec3& center,
                            std::uint64_t seed);
+
+// The RMS distance between `points` moved by `a` and by `b` (0 for no points).
+double RmsDistanceBetween(const std::vector<Vec3>& points, const Matrix4& a, const Matrix4& b);
 
 }  // namespace mlsreg
