@@ -6,6 +6,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "absl/strings/str_cat.h"
@@ -16,6 +17,7 @@
 #include "cli/exit_codes.h"
 #include "cli/registration_flags.h"
 #include "cli/report.h"
+#include "mlsreg/core/length.h"
 #include "mlsreg/core/parallel_for.h"
 #include "mlsreg/evaluation/metrics.h"
 #include "mlsreg/io/io.h"
@@ -29,12 +31,12 @@ struct AlignArgs {
   std::vector<std::string> scans;
   std::string poses, gt, out, merged, json, pairs = "loop";
   double min_overlap = AlignOptions().min_overlap;
-  double overlap_distance_d = AlignOptions().overlap_distance_d;
+  // Lengths as given ("20", "20d", "5m"), parsed with the other flags.
+  std::string overlap_distance = "20", resample_spacing = "1", resample_radius = "0";
   int anchor = 0;
   int threads = HardwareThreads();
-  bool cached = false;    // with --server: --scans are ids of targets on the server
-  bool resample = false;  // --merged onto the joint MLS surface
-  SurfaceResampling resampling;
+  bool cached = false;      // with --server: --scans are ids of targets on the server
+  bool resample = false;    // --merged onto the joint MLS surface
   RegistrationFlags flags;  // edges by method auto, as registrations
   ConnectionFlags connection;
 };
@@ -55,6 +57,16 @@ int RunAlign(const AlignArgs& args) {
   if (!edge_options.ok()) return ExitFor("align", edge_options.status());
   auto policy = ParseEnum<PairPolicy>(PairPolicyNames(), args.pairs, "--pairs");
   if (!policy.ok()) return ExitFor("align", policy.status());
+  const auto overlap_distance = ParseLength(args.overlap_distance, "--overlap-distance");
+  if (!overlap_distance.ok()) return ExitFor("align", overlap_distance.status());
+  SurfaceResampling resampling;
+  for (const auto& [flag, text, length] :
+       {std::tuple{"--resample-spacing", &args.resample_spacing, &resampling.spacing},
+        std::tuple{"--resample-radius", &args.resample_radius, &resampling.radius}}) {
+    auto parsed = ParseLength(*text, flag);
+    if (!parsed.ok()) return ExitFor("align", parsed.status());
+    *length = *parsed;
+  }
   const bool remote = args.connection.has_server();
   if (args.cached && !remote) {
     return ExitFor("align",
@@ -88,7 +100,7 @@ int RunAlign(const AlignArgs& args) {
   options.edge = *edge_options;
   options.pairs = *policy;
   options.min_overlap = args.min_overlap;
-  options.overlap_distance_d = args.overlap_distance_d;
+  options.overlap_distance = *overlap_distance;
   options.anchor = args.anchor;
   options.threads = std::max(1, args.threads);
   if (!args.poses.empty()) {
@@ -193,7 +205,6 @@ int RunAlign(const AlignArgs& args) {
   if (!args.merged.empty()) {
     PointCloud merged = MergeScans(scans, result->poses);
     if (args.resample) {
-      SurfaceResampling resampling = args.resampling;
       resampling.threads = std::max(1, args.threads);
       auto resampled = ResampleOnMlsSurface(merged, result->sampling_distance, resampling);
       if (!resampled.ok()) return ExitFor("align", resampled.status());
@@ -284,8 +295,9 @@ CommandRunner AddAlignCommand(CLI::App& app) {
                   "--pairs overlap: share of a scan within --overlap-distance of the other "
                   "(under the initial poses) to pair them")
       ->capture_default_str();
-  cmd->add_option("--overlap-distance", args->overlap_distance_d,
-                  "--pairs overlap: that distance, units of d")
+  cmd->add_option("--overlap-distance", args->overlap_distance,
+                  "--pairs overlap: that distance, units of d, or a length: 5m, 30cm, 5mm")
+      ->type_name("LENGTH")
       ->capture_default_str();
   cmd->add_option("--anchor", args->anchor, "the scan whose frame the poses are in")
       ->capture_default_str();
@@ -295,11 +307,14 @@ CommandRunner AddAlignCommand(CLI::App& app) {
   cmd->add_flag("--resample", args->resample,
                 "with --merged: resample the merged cloud onto the joint MLS surface of all scans "
                 "(one point per voxel, no layers where scans overlap, noise smoothed)");
-  cmd->add_option("--resample-spacing", args->resampling.spacing_d,
-                  "--resample: the voxel edge, units of d")
+  cmd->add_option("--resample-spacing", args->resample_spacing,
+                  "--resample: the voxel edge, units of d, or a length: 1m, 30cm, 5mm")
+      ->type_name("LENGTH")
       ->capture_default_str();
-  cmd->add_option("--resample-radius", args->resampling.radius_d,
-                  "--resample: MLS support radius, units of d (0: from the merged cloud's noise)")
+  cmd->add_option("--resample-radius", args->resample_radius,
+                  "--resample: MLS support radius, units of d, or a length: 1m, 30cm, 5mm (0: "
+                  "from the merged cloud's noise)")
+      ->type_name("LENGTH")
       ->capture_default_str();
   cmd->add_option("--json", args->json, "write poses, edges and errors as JSON");
   cmd->add_option("--threads", args->threads,

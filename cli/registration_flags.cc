@@ -1,5 +1,7 @@
 #include "cli/registration_flags.h"
 
+#include <string>
+#include <string_view>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -24,6 +26,18 @@ std::string GroupTitle(ParameterGroup group) {
     if (g == group) return title;
   }
   return "Registration";
+}
+
+// A length's help says it may be given in the clouds' units too: in place of "(units of d)"
+// where the help names the unit, else at the end.
+std::string LengthHelp(const ParameterSpec& spec, std::string help) {
+  if (!spec.IsLength()) return help;
+  constexpr std::string_view kInD = "(units of d)";
+  constexpr std::string_view kEither = "(units of d, or a length: 1m, 30cm, 5mm)";
+  if (const std::size_t at = help.find(kInD); at != std::string::npos) {
+    return help.replace(at, kInD.size(), kEither);
+  }
+  return help + " " + std::string(kEither);
 }
 
 const char* TypeName(ParameterType type) {
@@ -71,11 +85,11 @@ void RegistrationFlags::AddTo(CLI::App& app, bool method_flag) {
             absl::Status set = SetParameterFromText(options_, spec, text, field);
             if (!set.ok() && error_.ok()) error_ = set;
           },
-          std::string(spec.help) +
-              (spec.type == ParameterType::kEnum ? ": " + spec.enum_names->Choices()
-               : spec.note.empty()               ? std::string()
-                                                 : " " + std::string(spec.note)) +
-              (spec.IsLength() ? " (units of d, or a length: 1m, 30cm, 5mm)" : ""));
+          LengthHelp(
+              spec, std::string(spec.help) + (spec.type == ParameterType::kEnum
+                                                  ? ": " + spec.enum_names->Choices()
+                                              : spec.note.empty() ? std::string()
+                                                                  : " " + std::string(spec.note))));
       option->default_str(spec.Format(spec.get(defaults)));
       option->type_name(TypeName(spec.type));
     }

@@ -19,7 +19,11 @@ absl::StatusOr<AlignOptions> AlignOptionsFromProto(const v1::AlignScansHeader& h
   if (!edge.ok()) return edge.status();
   options.edge = *std::move(edge);
   if (header.has_min_overlap()) options.min_overlap = header.min_overlap();
-  if (header.has_overlap_distance_d()) options.overlap_distance_d = header.overlap_distance_d();
+  if (header.has_overlap_distance()) {
+    options.overlap_distance = {header.overlap_distance(), true};
+  } else if (header.has_overlap_distance_d()) {
+    options.overlap_distance = {header.overlap_distance_d(), false};
+  }
   options.anchor = header.anchor();
   for (int i = 0; i < header.initial_poses_size(); ++i) {
     auto pose = FromProto(header.initial_poses(i), absl::StrCat("header.initial_poses[", i, "]"));
@@ -36,7 +40,11 @@ void AlignOptionsToProto(const AlignOptions& options, v1::AlignScansHeader* head
   OptionsToProto(options.edge, &method, header->mutable_parameters());
   header->set_method(method);
   header->set_min_overlap(options.min_overlap);
-  header->set_overlap_distance_d(options.overlap_distance_d);
+  if (options.overlap_distance.absolute) {
+    header->set_overlap_distance(options.overlap_distance.value);
+  } else {
+    header->set_overlap_distance_d(options.overlap_distance.value);
+  }
   header->set_anchor(options.anchor);
   header->clear_initial_poses();
   for (const Matrix4& pose : options.initial_poses) ToProto(pose, header->add_initial_poses());

@@ -242,7 +242,7 @@ AlignOptions AlignOptionsFromPython(py::object poses, const std::string& pairs,
   options.edge = OptionsFromPython(method, params);
   options.pairs = ValueOrThrow(ParseEnum<PairPolicy>(PairPolicyNames(), pairs, "pairs"));
   options.min_overlap = min_overlap;
-  options.overlap_distance_d = overlap_distance_d;
+  options.overlap_distance = {overlap_distance_d, false};
   options.anchor = anchor;
   options.threads = threads;
   if (!poses.is_none()) {
@@ -322,8 +322,8 @@ py::dict MergeScansFromPython(const py::list& scans, const py::list& poses, bool
   const std::optional<double> given_d =
       d.is_none() ? std::nullopt : std::optional<double>(d.cast<double>());
   SurfaceResampling options;
-  options.spacing_d = spacing_d;
-  options.radius_d = radius_d;
+  options.spacing = {spacing_d, false};
+  options.radius = {radius_d, false};
   options.threads = threads;
   absl::StatusOr<ResampledCloud> resampled;
   {

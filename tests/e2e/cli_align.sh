@@ -45,9 +45,10 @@ assert all(e["kept"] == e["trusted"] for e in j["edges"]), j["edges"]
 conf = [l.split() for l in open(sys.argv[2])]
 assert [c[1] for c in conf] == ["bun000.ply", "bun045.ply", "bun090.ply", "bun315.ply"], conf
 PY
-# The written .conf, read back as initial poses, is the result: aligning again moves nothing.
+# The written .conf, read back as initial poses, is the result: aligning again moves nothing
+# (the overlap band in metres this time: 1 cm, about 20 d on the bunny).
 "$MLSREG" align --scans "${scans[@]}" --poses "$work/poses.conf" --gt "$work/poses.conf" \
-  --pairs overlap --out "$work/again.txt" --merged "$work/resampled.ply" --resample \
+  --pairs overlap --overlap-distance 1cm --out "$work/again.txt" --merged "$work/resampled.ply" --resample \
   > "$work/again.log" || fail "align again"
 grep -q "^# one pose per scan" "$work/again.txt" || fail "rows file: $(cat "$work/again.txt")"
 [ "$(grep -vc '^#' "$work/again.txt")" -eq 4 ] || fail "rows: $(cat "$work/again.txt")"
@@ -70,11 +71,16 @@ code2=$?
 code3=$?
 "$MLSREG" align --scans "${scans[0]}" "${scans[1]}" --resample 2> "$work/bad4.txt"
 code4=$?
+"$MLSREG" align --scans "${scans[0]}" "${scans[1]}" --pairs overlap --overlap-distance 5km \
+  2> "$work/bad5.txt"
+code5=$?
 set -e
 [ "$code1" -eq 2 ] && grep -q "poses line" "$work/bad1.txt" || fail "bad poses file: $code1 $(cat "$work/bad1.txt")"
 [ "$code2" -eq 2 ] && grep -q "1 poses for 2 scans" "$work/bad2.txt" || fail "pose count: $code2 $(cat "$work/bad2.txt")"
 [ "$code3" -eq 2 ] && grep -q -- "--pairs" "$work/bad3.txt" || fail "bad --pairs: $code3 $(cat "$work/bad3.txt")"
 [ "$code4" -eq 2 ] && grep -q -- "give --merged" "$work/bad4.txt" || fail "--resample alone: $code4 $(cat "$work/bad4.txt")"
+[ "$code5" -eq 2 ] && grep -q -- "--overlap-distance: '5km' is not a length" "$work/bad5.txt" || \
+  fail "bad length: $code5 $(cat "$work/bad5.txt")"
 
 # The six bunny scans of the issue that found silent failures, default flags: edges by method
 # auto put every pose within 1 degree of bun.conf. With MLS-SICP edges two poses end far off; the

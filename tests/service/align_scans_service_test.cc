@@ -115,6 +115,22 @@ class AlignScansServiceTest : public ::testing::Test {
   std::unique_ptr<client::Client> client_;
 };
 
+// The overlap distance crosses the wire in the unit it was given in.
+TEST(AlignCodecTest, TheOverlapDistanceKeepsItsUnit) {
+  for (const GivenLength length : {GivenLength{12.5, false}, GivenLength{4.0, true}}) {
+    AlignOptions options;
+    options.overlap_distance = length;
+    v1::AlignScansHeader header;
+    wire::AlignOptionsToProto(options, &header);
+    EXPECT_EQ(header.has_overlap_distance(), length.absolute);
+    EXPECT_EQ(header.has_overlap_distance_d(), !length.absolute);
+    auto back = wire::AlignOptionsFromProto(header);
+    ASSERT_TRUE(back.ok()) << back.status();
+    EXPECT_EQ(back->overlap_distance.value, length.value);
+    EXPECT_EQ(back->overlap_distance.absolute, length.absolute);
+  }
+}
+
 TEST_F(AlignScansServiceTest, UploadedScansGiveTheLibrarysPosesAndEveryEdgeStreams) {
   ASSERT_NO_FATAL_FAILURE(StartWith(TestConfig()));
   const AlignOptions options = QuickAlign();

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "mlsreg/core/length.h"
 #include "mlsreg/core/transform.h"
 #include "mlsreg/correspondences/correspondence_filter.h"
 #include "mlsreg/evaluation/metrics.h"
@@ -19,6 +20,31 @@ struct FilterCase {
   double source_h;
   Correspondence c;
 };
+
+// Lengths as users write them: in units of d, or in the clouds' units read as metres.
+TEST(LengthTest, ParsesUnitsOfDAndMetricLengths) {
+  const auto parsed = [](std::string_view text) { return ParseLength(text, "--x").value(); };
+  EXPECT_EQ(parsed("20").value, 20.0);
+  EXPECT_FALSE(parsed("20").absolute);
+  EXPECT_EQ(parsed("2.5d").value, 2.5);
+  EXPECT_FALSE(parsed("2.5 d").absolute);
+  EXPECT_EQ(parsed("5m").value, 5.0);
+  EXPECT_TRUE(parsed("5m").absolute);
+  EXPECT_DOUBLE_EQ(parsed("30cm").value, 0.3);
+  EXPECT_DOUBLE_EQ(parsed("5 mm ").value, 0.005);
+  EXPECT_TRUE(parsed("5mm").absolute);
+  // In the clouds' units and in d, for a cloud with d = 2 cm.
+  EXPECT_DOUBLE_EQ(parsed("5m").In(0.02), 5.0);
+  EXPECT_DOUBLE_EQ(parsed("5m").InD(0.02), 250.0);
+  EXPECT_DOUBLE_EQ(parsed("20").In(0.02), 0.4);
+  EXPECT_DOUBLE_EQ(parsed("20").InD(0.02), 20.0);
+  for (std::string_view bad : {"", "m", "5km", "five", "5 m m", "inf", "nan", "1e999m"}) {
+    SCOPED_TRACE(bad);
+    const auto status = ParseLength(bad, "--overlap-distance").status();
+    EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_EQ(status.message().find("--overlap-distance: '"), 0u) << status.message();
+  }
+}
 
 TEST(CorrespondenceFilterTest, RejectsEachReasonAndCountsIt) {
   Correspondence good{Vec3(0, 0, 0.1), Vec3::UnitZ(), 0.010, true};

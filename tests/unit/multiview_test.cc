@@ -232,7 +232,7 @@ TEST(AlignScansTest, OverlapPairsAreThoseThatOverlapUnderTheInitialPoses) {
   options.initial_poses = ring.truth;
   options.pairs = PairPolicy::kOverlap;
   options.min_overlap = 0.3;
-  options.overlap_distance_d = 3.0;  // exact poses: a tight band
+  options.overlap_distance = {3.0, false};  // exact poses: a tight band
   auto result = AlignScans(ring.scans, options);
   ASSERT_TRUE(result.ok()) << result.status();
   // Neighbours (60 degrees apart) overlap, opposite views (180 degrees) do not.
@@ -243,6 +243,20 @@ TEST(AlignScansTest, OverlapPairsAreThoseThatOverlapUnderTheInitialPoses) {
   }
   EXPECT_TRUE(has_neighbour);
   EXPECT_FALSE(has_opposite);
+
+  // The same band in the clouds' units chooses the same pairs.
+  AlignOptions absolute = options;
+  absolute.overlap_distance = {3.0 * result->sampling_distance, true};
+  auto same = AlignScans(ring.scans, absolute);
+  ASSERT_TRUE(same.ok()) << same.status();
+  ASSERT_EQ(same->edges.size(), result->edges.size());
+  for (std::size_t e = 0; e < same->edges.size(); ++e) {
+    EXPECT_EQ(same->edges[e].from, result->edges[e].from);
+    EXPECT_EQ(same->edges[e].to, result->edges[e].to);
+  }
+  absolute.overlap_distance = {-1.0, true};
+  EXPECT_EQ(AlignScans(ring.scans, absolute).status().message(),
+            "overlap_distance: must be a positive length");
 }
 
 TEST(AlignScansTest, AStopEndsTheJobAsCancelled) {
@@ -339,7 +353,8 @@ TEST(MergedCloudTest, ResamplingPutsOnePointPerVoxelOnTheJointSurfaceAndRemovesT
   ASSERT_TRUE(scan0.ok());
   const double d = (*scan0)->sampling_distance();
   SurfaceResampling options;
-  options.spacing_d = 2.0;  // random samples: their spacing is about twice their mean NN distance
+  // Random samples: their spacing is about twice their mean NN distance.
+  options.spacing = {2.0, false};
   options.threads = 2;
   auto resampled = ResampleOnMlsSurface(merged, d, options);
   ASSERT_TRUE(resampled.ok()) << resampled.status();
@@ -365,12 +380,23 @@ TEST(MergedCloudTest, ResamplingPutsOnePointPerVoxelOnTheJointSurfaceAndRemovesT
   EXPECT_GE(resampled->radius_d, 5.0);  // the automatic radius' minimum
   EXPECT_NEAR(resampled->noise_sigma_d, noise / d, 0.5 * noise / d);
 
-  // A chosen radius is used; bad options are refused naming the field.
-  options.radius_d = 7.0;
+  // A chosen radius is used, in d or in the clouds' units; bad options are refused naming the
+  // field.
+  options.radius = {7.0, false};
   auto wide = ResampleOnMlsSurface(merged, d, options);
   ASSERT_TRUE(wide.ok()) << wide.status();
   EXPECT_EQ(wide->radius_d, 7.0);
-  options.spacing_d = 0.0;
+  options.radius = {7.0 * d, true};
+  options.spacing = {2.0 * d, true};
+  auto metric = ResampleOnMlsSurface(merged, d, options);
+  ASSERT_TRUE(metric.ok()) << metric.status();
+  EXPECT_DOUBLE_EQ(metric->radius_d, 7.0);
+  EXPECT_EQ(metric->cloud.size(), wide->cloud.size());
+  options.radius = {200.0 * d, true};
+  EXPECT_NE(ResampleOnMlsSurface(merged, d, options).status().message().find("is 200 d"),
+            std::string::npos);
+  options.radius = {7.0, false};
+  options.spacing = {0.0, false};
   EXPECT_NE(ResampleOnMlsSurface(merged, d, options).status().message().find("spacing_d"),
             std::string::npos);
   EXPECT_NE(ResampleOnMlsSurface(merged, -1.0, {}).status().message().find("d:"),

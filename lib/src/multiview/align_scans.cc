@@ -184,8 +184,12 @@ absl::Status ValidateAlignOptions(int n, const AlignOptions& options) {
   if (!(options.min_overlap >= 0.0 && options.min_overlap <= 1.0)) {
     return absl::InvalidArgumentError("min_overlap: must be in [0, 1]");
   }
-  if (!(options.overlap_distance_d > 0.0 && options.overlap_distance_d <= 1000.0)) {
-    return absl::InvalidArgumentError("overlap_distance_d: must be in (0, 1000]");
+  const GivenLength& overlap = options.overlap_distance;
+  if (!(overlap.value > 0.0 &&
+        (overlap.absolute ? std::isfinite(overlap.value) : overlap.value <= 1000.0))) {
+    return absl::InvalidArgumentError(overlap.absolute
+                                          ? "overlap_distance: must be a positive length"
+                                          : "overlap_distance_d: must be in (0, 1000]");
   }
   if (options.threads < 1) return absl::InvalidArgumentError("threads: must be >= 1");
   return ValidateOptions(options.edge);
@@ -258,7 +262,7 @@ absl::StatusOr<AlignResult> AlignTargets(const std::vector<std::shared_ptr<const
     std::vector<std::pair<int, int>> overlapping;
     for (const auto& [i, j] : pairs) {
       const Matrix4 relative = initial[i].inverse() * initial[j];
-      if (NearShare(*targets[i], samples[j].points, relative, options.overlap_distance_d * d) >=
+      if (NearShare(*targets[i], samples[j].points, relative, options.overlap_distance.In(d)) >=
           options.min_overlap) {
         overlapping.emplace_back(i, j);
       }

@@ -33,11 +33,17 @@ absl::StatusOr<ResampledCloud> ResampleOnMlsSurface(const PointCloud& merged, do
   if (!(d > 0.0) || !std::isfinite(d)) {
     return absl::InvalidArgumentError("d: the sampling distance must be positive");
   }
-  if (!(options.spacing_d > 0.0 && options.spacing_d <= 100.0)) {
-    return absl::InvalidArgumentError("spacing_d: must be in (0, 100]");
+  // Lengths in the clouds' units are checked as what they are in the scans' d.
+  const double spacing_d = options.spacing.InD(d), radius_d = options.radius.InD(d);
+  if (!(spacing_d > 0.0 && spacing_d <= 100.0)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("spacing_d: must be in (0, 100]",
+                     options.spacing.absolute ? absl::StrCat(", is ", spacing_d, " d") : ""));
   }
-  if (!(options.radius_d >= 0.0 && options.radius_d <= 100.0)) {
-    return absl::InvalidArgumentError("radius_d: must be in [0, 100] (0: automatic)");
+  if (!(radius_d >= 0.0 && radius_d <= 100.0)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("radius_d: must be in [0, 100] (0: automatic)",
+                     options.radius.absolute ? absl::StrCat(", is ", radius_d, " d") : ""));
   }
   if (options.threads < 1) return absl::InvalidArgumentError("threads: must be >= 1");
   // Index and noise of the merged cloud (its patches and features are never used).
@@ -54,14 +60,13 @@ absl::StatusOr<ResampledCloud> ResampleOnMlsSurface(const PointCloud& merged, do
   // The noise is measured in the merged cloud's own (denser) d; the radius rule speaks of the
   // scans' d.
   out.noise_sigma_d = surface.noise().sigma_d * surface.sampling_distance() / d;
-  out.radius_d = options.radius_d > 0.0 ? options.radius_d : AutoMlsRadiusD(out.noise_sigma_d);
+  out.radius_d = radius_d > 0.0 ? radius_d : AutoMlsRadiusD(out.noise_sigma_d);
   MlsOptions mls;
   mls.radius = out.radius_d * d;
   mls.search_margin = 0.25;
   const MlsProjector projector(surface.points(), surface.tree(), mls, surface.cloud().viewpoint);
 
-  const std::vector<std::uint32_t> samples =
-      VoxelRepresentatives(surface.points(), options.spacing_d * d);
+  const std::vector<std::uint32_t> samples = VoxelRepresentatives(surface.points(), spacing_d * d);
   // The normal of the weighted PCA plane of the last fit: the cubic's gradient follows the noise.
   std::vector<MlsProjection> projected(samples.size());
   const bool finished = ProjectEach(

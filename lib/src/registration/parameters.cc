@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "mlsreg/core/length.h"
 
 namespace mlsreg {
 namespace {
@@ -351,48 +352,31 @@ absl::StatusOr<ParameterValue> ParameterSpec::Parse(std::string_view text,
   return value;
 }
 
-namespace {
-
-// The units a length may be given in, and their size in the clouds' units (metres).
-struct LengthUnit {
-  std::string_view suffix;
-  double metres;
-};
-constexpr LengthUnit kAbsoluteUnits[] = {{"mm", 1e-3}, {"cm", 1e-2}, {"m", 1.0}};
-
-}  // namespace
-
 absl::Status SetParameterFromText(RegistrationOptions& options, const ParameterSpec& spec,
                                   std::string_view text, std::string_view field) {
-  if (spec.IsLength()) {
-    std::string_view number = text;
-    while (!number.empty() && number.back() == ' ') number.remove_suffix(1);
-    for (const LengthUnit& unit : kAbsoluteUnits) {
-      if (!number.ends_with(unit.suffix)) continue;
-      number.remove_suffix(unit.suffix.size());
-      while (!number.empty() && number.back() == ' ') number.remove_suffix(1);
-      ParameterValue value;
-      const bool valid = ParseNumber<double>(number, value) &&
-                         std::isfinite(std::get<double>(value)) &&
-                         spec.range.AboveMin(std::get<double>(value));
-      if (!valid) {
-        return absl::InvalidArgumentError(absl::StrCat(
-            std::string(field), ": '", std::string(text), "' is not valid: ", spec.Rule(),
-            " in units of d, or a length in m, cm or mm ",
-            spec.range.min_open ? "(> " : "(>= ", Bound(spec.range.min), ")"));
-      }
-      options.absolute_lengths.insert_or_assign(std::string(spec.name),
-                                                std::get<double>(value) * unit.metres);
-      return absl::OkStatus();
+  ParameterValue value;
+  // A length with a unit ("5m", "12d"); anything else ("auto", a plain number) is the row's.
+  const absl::StatusOr<GivenLength> length =
+      spec.IsLength() ? ParseLength(text, field) : absl::StatusOr<GivenLength>();
+  if (length.ok() && length->absolute) {
+    if (!spec.range.AboveMin(length->value)) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          std::string(field), ": '", std::string(text), "' is not valid: ", spec.Rule(),
+          " in units of d, or a length in m, cm or mm ",
+          spec.range.min_open ? "(> " : "(>= ", Bound(spec.range.min), ")"));
     }
-    if (number.ends_with('d')) {
-      text = number.substr(0, number.size() - 1);
-      while (!text.empty() && text.back() == ' ') text.remove_suffix(1);
-    }
+    options.absolute_lengths.insert_or_assign(std::string(spec.name), length->value);
+    return absl::OkStatus();
   }
-  absl::StatusOr<ParameterValue> value = spec.Parse(text, field);
-  if (!value.ok()) return value.status();
-  spec.set(options, *value);
+  if (length.ok()) {
+    value = length->value;
+    if (absl::Status s = spec.Check(value, field); !s.ok()) return s;
+  } else {
+    absl::StatusOr<ParameterValue> parsed = spec.Parse(text, field);
+    if (!parsed.ok()) return parsed.status();
+    value = *std::move(parsed);
+  }
+  spec.set(options, value);
   if (auto it = options.absolute_lengths.find(spec.name); it != options.absolute_lengths.end()) {
     options.absolute_lengths.erase(it);
   }

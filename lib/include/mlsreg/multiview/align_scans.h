@@ -11,6 +11,7 @@
 
 #include "absl/status/statusor.h"
 #include "mlsreg/core/enum_names.h"
+#include "mlsreg/core/length.h"
 #include "mlsreg/core/point_cloud.h"
 #include "mlsreg/core/stop_check.h"
 #include "mlsreg/geometry/target.h"
@@ -38,10 +39,12 @@ struct AlignOptions {
   // Every policy: an edge whose registration does not verify is not trusted (left out of the
   // pose graph unless it is needed).
   // kOverlap: a pair is registered when at least `min_overlap` of one scan's samples lie within
-  // `overlap_distance_d` of the other scan under the initial poses. Generous, as the poses are
-  // rough: a 10 degree error moves the rim of a scan 230 d across by 20 d.
+  // `overlap_distance` of the other scan under the initial poses. Generous, as the poses are
+  // rough: a 10 degree error moves the rim of a scan 230 d across by 20 d. In units of the
+  // scans' mean d (in (0, 1000]), or in the clouds' units (> 0; e.g. 5 m for a street whose d
+  // near the sensor is 2 cm).
   double min_overlap = 0.3;
-  double overlap_distance_d = 20.0;
+  GivenLength overlap_distance{20.0, false};
   // Every edge's registration, by default method auto (verified; global when its start fails).
   RegistrationOptions edge;
   // kLoop: a loop closure beyond either bound is reported (AlignResult::loop_closure_exceeded).

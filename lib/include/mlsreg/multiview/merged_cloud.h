@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "mlsreg/core/length.h"
 #include "mlsreg/core/point_cloud.h"
 #include "mlsreg/core/stop_check.h"
 #include "mlsreg/core/transform.h"
@@ -19,10 +20,11 @@ namespace mlsreg {
 PointCloud MergeScans(const std::vector<PointCloud>& scans, const std::vector<Matrix4>& poses);
 
 struct SurfaceResampling {
-  double spacing_d = 1.0;  // one point per occupied voxel of this edge (units of d)
-  // MLS support radius (units of d); 0: the automatic radius of the noise estimated on the
-  // merged cloud, never below that rule's minimum of 5 d.
-  double radius_d = 0.0;
+  // One point per occupied voxel of this edge: in (0, 100] d, or in the clouds' units.
+  GivenLength spacing{1.0, false};
+  // MLS support radius: in [0, 100] d, or in the clouds' units; 0: the automatic radius of the
+  // noise estimated on the merged cloud, never below that rule's minimum of 5 d.
+  GivenLength radius{0.0, false};
   int threads = 1;
 };
 
