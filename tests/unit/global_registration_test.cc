@@ -229,32 +229,45 @@ TEST(VerificationTest, DistancesToTheMlsSurfaceOfAPlane) {
   EXPECT_NEAR(distances[3], 2.0, 0.03);  // to the nearest corner sample, about (1, 0, 0)
 }
 
-TEST(AutoMethodTest, NearTheTruthItAlignsTheVoxelCloudsThenRefinesWithoutAGlobalStage) {
+// Near the truth there is no global stage. The bunny's scans are clean (plane-to-plane finish),
+// so the verified voxel alignment goes straight to the finish; without a finish, MLS-SICP
+// refines it.
+TEST(AutoMethodTest, NearTheTruthItAlignsTheVoxelCloudsThenFinishesWithoutAGlobalStage) {
   const BunnyPair& bunny = Bunny();
   const Matrix4 start =
       PerturbedStart(bunny.source, bunny.truth, bunny.target->sampling_distance(), {10.0, 10.0, 1});
-  RegistrationOptions options;
-  ASSERT_EQ(options.method, Method::kAuto);  // the default
-  std::vector<Stage> stages;
-  RegistrationCallbacks callbacks;
-  callbacks.on_iteration = [&](const IterationReport& r) {
-    if (stages.empty() || stages.back() != r.stage) stages.push_back(r.stage);
-  };
-  auto automatic = Register(*bunny.target, bunny.source, start, options, callbacks);
-  ASSERT_TRUE(automatic.ok()) << automatic.status();
-  ASSERT_TRUE(automatic->auto_report.has_value());
-  const AutoReport& report = *automatic->auto_report;
-  EXPECT_TRUE(report.early_exit);
-  EXPECT_TRUE(report.verified);
-  ASSERT_TRUE(automatic->verification.has_value());
-  EXPECT_TRUE(automatic->verification->verified());
-  EXPECT_EQ(report.candidates.size(), 1u);
-  EXPECT_EQ(report.chosen, 0);
-  EXPECT_EQ(report.timings.global, 0.0);
-  EXPECT_EQ(stages, (std::vector<Stage>{Stage::kCoarse, Stage::kStart, Stage::kFinish}));
-  const PoseError error = EvaluatePose(bunny.source.points, automatic->transform, bunny.truth,
-                                       automatic->sampling_distance);
-  EXPECT_LT(error.rmse_d, 1.0);
+  for (const bool finish : {true, false}) {
+    SCOPED_TRACE(finish);
+    RegistrationOptions options;
+    ASSERT_EQ(options.method, Method::kAuto);  // the default
+    options.automatic.finish = finish;
+    std::vector<Stage> stages;
+    RegistrationCallbacks callbacks;
+    callbacks.on_iteration = [&](const IterationReport& r) {
+      if (stages.empty() || stages.back() != r.stage) stages.push_back(r.stage);
+    };
+    auto automatic = Register(*bunny.target, bunny.source, start, options, callbacks);
+    ASSERT_TRUE(automatic.ok()) << automatic.status();
+    ASSERT_TRUE(automatic->auto_report.has_value());
+    const AutoReport& report = *automatic->auto_report;
+    EXPECT_TRUE(report.early_exit);
+    EXPECT_TRUE(report.verified);
+    ASSERT_TRUE(automatic->verification.has_value());
+    EXPECT_TRUE(automatic->verification->verified());
+    EXPECT_EQ(report.candidates.size(), 1u);
+    EXPECT_EQ(report.chosen, 0);
+    EXPECT_EQ(report.timings.global, 0.0);
+    if (finish) {
+      ASSERT_EQ(report.finish.kind, FinishKind::kPlaneToPlane);
+      EXPECT_TRUE(report.finish.kept);
+      EXPECT_EQ(stages, (std::vector<Stage>{Stage::kCoarse, Stage::kFinish}));
+    } else {
+      EXPECT_EQ(stages, (std::vector<Stage>{Stage::kCoarse, Stage::kStart}));
+    }
+    const PoseError error = EvaluatePose(bunny.source.points, automatic->transform, bunny.truth,
+                                         automatic->sampling_distance);
+    EXPECT_LT(error.rmse_d, finish ? 0.3 : 1.0);
+  }
 }
 
 // A verified start that covers less of the source than accept_fraction asks for is confirmed by
@@ -313,8 +326,12 @@ TEST(AutoMethodTest, FromAHalfTurnItFindsTheTruthAndSaysWhichCandidateWon) {
   EXPECT_EQ(stages[1], Stage::kStart);
   EXPECT_EQ(stages[2], Stage::kGlobal);
   EXPECT_EQ(stages[3], Stage::kCandidate);
-  ASSERT_TRUE(report.finish.kept);  // the chosen candidate's refinement, then its finish
-  EXPECT_EQ(stages[stages.size() - 2], Stage::kFinal);
+  // The chosen candidate's voxel alignment verified, and the clean scans take the plane-to-plane
+  // finish: no MLS-SICP refinement between them.
+  ASSERT_TRUE(report.finish.kept);
+  ASSERT_EQ(report.finish.kind, FinishKind::kPlaneToPlane);
+  EXPECT_TRUE(report.candidates[report.chosen].score.verified());
+  EXPECT_EQ(stages[stages.size() - 2], Stage::kCandidate);
   EXPECT_EQ(stages.back(), Stage::kFinish);
   EXPECT_EQ(result->trace.back().stage, Stage::kFinish);
   EXPECT_EQ(result->trace.back().candidate, report.chosen);
@@ -396,7 +413,11 @@ TEST(AutoMethodTest, EveryStageCanBeCancelled) {
       if (r.stage == stop_at) stop = true;
     };
     callbacks.should_stop = [&] { return stop; };
-    auto result = Register(*bunny.target, bunny.source, start, {}, callbacks);
+    // A verified candidate goes straight to the plane-to-plane finish; without a finish it is
+    // refined (Stage::kFinal).
+    RegistrationOptions options;
+    options.automatic.finish = stop_at != Stage::kFinal;
+    auto result = Register(*bunny.target, bunny.source, start, options, callbacks);
     ASSERT_TRUE(result.ok()) << result.status();
     EXPECT_EQ(result->termination, Termination::kCancelled);
     ASSERT_TRUE(result->auto_report.has_value());
