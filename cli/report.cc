@@ -59,11 +59,11 @@ std::string FormatVerification(const VerificationScore& v) {
       "%.1f %% of the overlap (%d of %d covered samples) within %.4g (%.2f d) of the target's "
       "surface, RMSE %.3f d; weakest direction: %s, standard error %.3g, %.1f %% of its %d "
       "samples agree; pull: a step of %.3g deg and %.3g would remove %.1f %% of the residuals, "
-      "settling moves the samples %.3g",
+      "settling moves the samples %.3g; neighbours share %.3g of their residuals",
       100.0 * v.inlier_fraction, v.inliers, v.covered, v.inlier_distance, v.inlier_distance_d,
       v.rmse_d, v.WorstDirectionText(), v.worst_direction_error, 100.0 * v.worst_direction_fraction,
       v.worst_direction_samples, v.pull_rotation_deg, v.pull_translation, 100.0 * v.pull_fraction,
-      v.settle_displacement);
+      v.settle_displacement, v.coherent_residual);
   if (v.verified()) return "verification: verified: " + evidence;
   return absl::StrFormat("verification: NOT VERIFIED (%s; do not trust the transform): %s",
                          VerdictName(v.verdict), evidence);
@@ -192,6 +192,7 @@ nlohmann::json VerificationJson(const VerificationScore& v) {
           {"pull_translation", v.pull_translation},
           {"pull_displacement", v.pull_displacement},
           {"settle_displacement", v.settle_displacement},
+          {"coherent_residual", v.coherent_residual},
           {"worst_direction", direction},
           {"worst_direction_text", v.WorstDirectionText()},
           {"worst_direction_fraction", v.worst_direction_fraction},

@@ -5,7 +5,9 @@ the target's and moved onto the target's centroid, so that the two shapes are th
 the same place and only their form differs. Writes the scaled sources and a manifest
 (id,source,target,gt with identity gt) to OUT.
 
-    python3 scripts/mismatched_pairs.py SCANS OUT
+    python3 scripts/mismatched_pairs.py SCANS OUT [SIGMA]
+
+SIGMA names the noise level of the scans used (default 0.8: sigma0.8/view_*.ply).
 """
 import os
 import sys
@@ -20,13 +22,14 @@ SIGMA = "0.8"
 
 def main():
     scans, out = os.path.abspath(sys.argv[1]), os.path.abspath(sys.argv[2])
+    sigma = sys.argv[3] if len(sys.argv) > 3 else SIGMA
     os.makedirs(out, exist_ok=True)
     rows = ["id,source,target,gt"]
     for k in VIEWS:
         for i, a in enumerate(MESHES):
             b = MESHES[(i + 1) % len(MESHES)]
-            source = o3d.io.read_point_cloud(os.path.join(scans, a, f"sigma{SIGMA}", f"view_{k}.ply"))
-            target_path = os.path.join(scans, b, f"sigma{SIGMA}", f"view_{k}.ply")
+            source = o3d.io.read_point_cloud(os.path.join(scans, a, f"sigma{sigma}", f"view_{k}.ply"))
+            target_path = os.path.join(scans, b, f"sigma{sigma}", f"view_{k}.ply")
             target = o3d.io.read_point_cloud(target_path)
             ds = float(np.mean(source.compute_nearest_neighbor_distance()))
             dt = float(np.mean(target.compute_nearest_neighbor_distance()))

@@ -101,7 +101,8 @@ def score_row(pair, kind, v, j):
             "verdict": v.get("verdict", j.get("error", "")),
             **{k: v.get(k, "") for k in ("inlier_fraction", "worst_direction_fraction",
                                          "residual_scale", "pull_fraction", "pull_displacement",
-                                         "settle_displacement", "inlier_distance", "noise", "covered",
+                                         "settle_displacement", "coherent_residual",
+                                         "inlier_distance", "noise", "covered",
                                          "worst_direction_samples",
                                          "worst_direction_strength", "worst_direction_error")}}
 

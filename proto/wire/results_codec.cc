@@ -36,6 +36,7 @@ void ToProto(const VerificationScore& s, v1::VerificationScore* out) {
   out->set_pull_translation(s.pull_translation);
   out->set_pull_displacement(s.pull_displacement);
   out->set_settle_displacement(s.settle_displacement);
+  out->set_coherent_residual(s.coherent_residual);
   out->set_noise(s.noise);
 }
 
@@ -64,6 +65,7 @@ VerificationScore FromProto(const v1::VerificationScore& p) {
   s.pull_translation = p.pull_translation();
   s.pull_displacement = p.pull_displacement();
   s.settle_displacement = p.settle_displacement();
+  s.coherent_residual = p.coherent_residual();
   s.noise = p.noise();
   return s;
 }

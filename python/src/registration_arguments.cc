@@ -68,7 +68,8 @@ py::dict ScoreToPython(const VerificationScore& s) {
       py::arg("pull_rotation_deg") = s.pull_rotation_deg,
       py::arg("pull_translation") = s.pull_translation,
       py::arg("pull_displacement") = s.pull_displacement,
-      py::arg("settle_displacement") = s.settle_displacement, py::arg("noise") = s.noise);
+      py::arg("settle_displacement") = s.settle_displacement,
+      py::arg("coherent_residual") = s.coherent_residual, py::arg("noise") = s.noise);
 }
 
 py::dict AutoToPython(const AutoReport& report) {

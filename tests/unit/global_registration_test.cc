@@ -159,6 +159,32 @@ TEST(VerificationTest, TheTruthVerifiesAndAWrongPoseOrAnotherObjectDoesNot) {
   EXPECT_LT(other.inlier_fraction, 0.5);
 }
 
+// Another shape laid on the target within its band: a noisy bumpy sheet against the same sheet
+// with a smooth ripple of about one noise sigma of the band (RMS) added. Most samples agree, the
+// residuals stay concentrated and nothing pulls; but neighbouring samples share the ripple,
+// which noise never does.
+TEST(VerificationTest, AnotherShapeWithinTheBandShowsInResidualsThatNeighboursShare) {
+  const double noise = 0.01;
+  auto target = Target::Build(SampleBumpySurface(20'000, -1.0, 1.0, 1, noise)).value();
+  const auto sheet = [&](double ripple) {
+    PointCloud cloud = SampleBumpySurface(20'000, -1.0, 1.0, 2, noise);
+    for (Vec3& p : cloud.points) p.z() += ripple * std::sin(8.0 * p.x()) * std::sin(8.0 * p.y());
+    return cloud;
+  };
+  const VerificationScore same = VerifyPose(*target, sheet(0.0), Matrix4::Identity());
+  EXPECT_TRUE(same.verified()) << VerdictName(same.verdict);
+  const double sigma = same.inlier_distance / VerificationOptions().band_per_noise;
+  EXPECT_LT(same.coherent_residual, 0.5 * sigma);
+  // A ripple of amplitude a has an RMS of a / 2: 2.8 sigma gives 1.4 noise sigmas of one cloud,
+  // about one of the band's (both clouds' noise); neighbours two voxels apart share most of it.
+  const VerificationScore other = VerifyPose(*target, sheet(2.8 * noise), Matrix4::Identity());
+  EXPECT_EQ(other.verdict, Verdict::kCoherentResiduals)
+      << VerdictName(other.verdict) << " inliers " << other.inlier_fraction << " coherent "
+      << other.coherent_residual / sigma << " sigma";
+  EXPECT_GT(other.inlier_fraction, 0.9);
+  EXPECT_GT(other.coherent_residual, VerificationOptions().max_coherent_sigmas * sigma);
+}
+
 // A street: a flat road between two walls, with posts along one side. Slid along the road the
 // road and the walls still agree; only the posts say no, and the verdict must listen to them.
 PointCloud Street(bool with_posts, double noise, std::uint64_t seed) {

@@ -135,6 +135,34 @@ void MeasurePull(std::span<const Pull> pulls, const Vec3& centre, double lever,
   score.pull_displacement = std::sqrt(displacement_squared / pulls.size());
 }
 
+// The residuals' shared part between neighbouring inliers: sqrt of the mean product of the
+// signed residuals of pairs within `radius` (signs made consistent by their normals), or 0.
+// Noise is independent from sample to sample and leaves about 0; a surface that is not the
+// target's shape (another object, a pose off the truth) leaves residuals that neighbours share.
+double CoherentResidual(std::span<const Pull> pulls, double radius) {
+  if (pulls.size() < 12) return 0.0;
+  std::vector<Vec3> positions;
+  positions.reserve(pulls.size());
+  for (const Pull& p : pulls) positions.push_back(p.x);
+  const KdTree tree(positions);
+  constexpr int kNeighbours = 7;  // the sample itself and six others
+  std::uint32_t index[kNeighbours];
+  double distance_squared[kNeighbours];
+  double sum = 0.0;
+  long pairs = 0;
+  for (std::size_t i = 0; i < pulls.size(); ++i) {
+    const std::size_t found = tree.Knn(pulls[i].x, kNeighbours, index, distance_squared);
+    for (std::size_t k = 0; k < found; ++k) {
+      const std::uint32_t j = index[k];
+      if (j == i || distance_squared[k] > radius * radius) continue;
+      const double sign = pulls[i].normal.dot(pulls[j].normal) < 0.0 ? -1.0 : 1.0;
+      sum += pulls[i].across * sign * pulls[j].across;
+      ++pairs;
+    }
+  }
+  return pairs > 0 ? std::sqrt(std::max(0.0, sum / pairs)) : 0.0;
+}
+
 // Where the data move the pose: up to kSettleSteps point-to-plane steps on the target's
 // surface from it, each over the samples inside their band at the moved pose, ending early once
 // a step moves the samples by less than `tolerance`. Returns the RMS distance the samples in
@@ -201,6 +229,9 @@ Verdict Judge(const VerificationScore& s, DirectionCheck direction, const Verifi
     return Verdict::kLowAgreement;
   }
   if (rms_per_band > o.max_rms_per_band) return Verdict::kDiffuseResiduals;
+  if (s.coherent_residual > o.max_coherent_sigmas * s.inlier_distance / o.band_per_noise) {
+    return Verdict::kCoherentResiduals;
+  }
   const double settle_bound =
       std::max(o.max_settle_sigmas * s.inlier_distance / o.band_per_noise, floor);
   if (s.settle_displacement > settle_bound ||
@@ -224,6 +255,7 @@ const EnumNames& VerdictNames() {
        "DIRECTION_DISAGREES"},
       {static_cast<int>(Verdict::kUnconstrained), "unconstrained", "UNCONSTRAINED"},
       {static_cast<int>(Verdict::kPulled), "pulled", "PULLED"},
+      {static_cast<int>(Verdict::kCoherentResiduals), "coherent_residuals", "COHERENT_RESIDUALS"},
   };
   static constexpr EnumNames kNames{"Verdict", "VERDICT_", kValues};
   return kNames;
@@ -312,6 +344,7 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   }
   const double lever = score.covered > 0 ? std::sqrt(radius_squared / score.covered) : 1.0;
   MeasurePull(pulls, centre, lever, score);
+  score.coherent_residual = CoherentResidual(pulls, 2.0 * voxels.voxel);
   if (score.inliers > 0) {
     const double noise_sigma = score.inlier_distance / options.band_per_noise;
     score.settle_displacement =

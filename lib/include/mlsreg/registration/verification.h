@@ -13,8 +13,10 @@
 //     their voxel's plane there when larger (a LiDAR's noise grows with range), combined with the
 //     source's; at least one median spacing of the target. It is generous on purpose: it tells
 //     the overlap from chance, the pull below tells how precisely the pose sits.
-// A right pose explains most of the overlap, its inliers' residuals concentrate inside the band,
-// and the agreeing samples fix every direction of motion: along each, the pose's standard error
+// A right pose explains most of the overlap, its inliers' residuals concentrate inside the band
+// and are noise (neighbouring samples do not share them: a surface of another shape, another
+// object moved onto the target, leaves residuals that neighbours share), and the agreeing
+// samples fix every direction of motion: along each, the pose's standard error
 // (their residual RMS over the square root of their point-to-plane information there) is at
 // most one noise sigma. This catches a pose slid along a road or a corridor: the ground and the
 // facades still agree, but the few samples that fix the slide (poles, building ends) do not; it
@@ -48,6 +50,12 @@ struct VerificationOptions {
   // A uniform spread of residuals over the band has an RMS of 0.58 band; a real fit's (Gaussian,
   // even with the noise underestimated twofold) at most about 0.45.
   double max_rms_per_band = 0.5;
+  // The residuals' part that neighbouring inliers (within two working voxels) share, at most
+  // this many noise sigmas of the band. Noise shares nothing; at a right pose the shared part is
+  // the MLS surface's own bias, 0.2-0.45 sigma at sigma <= 0.8 d, up to 0.87 at 4 d (the radius
+  // grows with the noise), at most 0.71 on real scans (tuning sets, verification study). Views of
+  // two different objects moved onto each other that passed every other test share 0.87-1.23.
+  double max_coherent_sigmas = 0.9;
   // Every direction of motion must be fixed by the agreeing samples to a standard error of at
   // most this many noise sigmas of the band (band / band_per_noise): the band then holds the
   // pose to about three standard errors. The error is the inliers' residual RMS over the square
@@ -80,6 +88,8 @@ enum class Verdict {
   kDirectionDisagrees,
   kUnconstrained,  // not even the covered samples fix one direction of motion
   kPulled,         // one small rigid motion would remove much of the residuals
+  // Neighbouring samples share their residuals: the surfaces differ in shape (another object).
+  kCoherentResiduals,
 };
 std::string_view VerdictName(Verdict verdict);  // "verified", "too_little_overlap", ...
 const EnumNames& VerdictNames();                // wire enum "Verdict"
@@ -107,6 +117,9 @@ struct VerificationScore {
   // The RMS distance the inliers travel when the pose settles where the data put it (a few
   // point-to-plane steps on the target's surface).
   double settle_displacement = 0.0;
+  // The residuals' part that neighbouring inliers share (absolute; the square root of the mean
+  // product of neighbours' signed residuals): about 0 for noise.
+  double coherent_residual = 0.0;
   // The direction of motion the agreeing samples fix least (rotation axis scaled by its share of
   // the lever, then translation), the pose's standard error along it (absolute: a rotation as
   // the displacement at the samples' RMS radius; infinite when no agreeing sample constrains
