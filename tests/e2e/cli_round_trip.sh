@@ -74,7 +74,7 @@ if "$MLSREG" register --server "$A" --target bun045 --source data/bunny/bun000.p
     --aligned "$work/x.ply" 2> "$work/aligned_remote.txt"; then fail "--aligned with --server accepted"; fi
 grep -q -- "--aligned and --merged need the target's cloud" "$work/aligned_remote.txt" \
   || fail "--aligned with --server: $(cat "$work/aligned_remote.txt")"
-iterations=$(grep -c "^\[start\] iter " "$work/remote.txt")
+iterations=$(grep -Ec "^\[(coarse|start|finish)\] iter " "$work/remote.txt")
 [ "$iterations" -ge 2 ] || fail "remote stream printed $iterations iterations"
 python3 - "$work/remote.json" "$work/local.json" <<'PY' || fail "remote and local transforms differ"
 import json, sys
@@ -86,15 +86,15 @@ for k in ("mls_radius_d", "mls_radius_auto", "target_noise_sigma_d", "source_noi
     assert r[k] == l[k], (k, r[k], l[k])
 assert r["mls_radius_auto"] and r["mls_radius_d"] == 5.0, r
 assert 0.0 < r["target_noise_sigma_d"] < 0.5, r
-# The default method is auto; near the truth the voxel clouds are aligned, MLS-SICP refines, and
-# the start's result verifies: no global stage runs.
+# The default method is auto; near the truth the voxel clouds are aligned and verify, and (clean
+# scans: a plane-to-plane finish) go straight to the finish: no refinement, no global stage.
 assert r["method"] == "auto" and l["method"] == "auto", (r["method"], l["method"])
 for j in (r, l):
     assert j["auto"]["verified"] and j["auto"]["early_exit"], j["auto"]
     assert len(j["auto"]["candidates"]) == 1 and j["auto"]["chosen"] == 0, j["auto"]
     assert [t["stage"] for t in j["trace"]][0] == "coarse", j["trace"][0]
     stages = [t["stage"] for t in j["trace"]]
-    assert stages[-1] == "finish" and "start" in stages, stages
+    assert stages[-1] == "finish" and "start" not in stages and "global" not in stages, stages
     # The verified pose is polished by the finish the noise chooses, and says which and why.
     f = j["auto"]["finish"]
     assert f["kept"] and f["kind"] == ("plane-to-plane" if f["noise_d"] < f["crossover_d"] else "mls"), f

@@ -102,10 +102,26 @@ TEST_F(RegistrationServiceTest, InlineSourceAndDefaultsWork) {
   ASSERT_NE(outcome.accepted(), nullptr);
   EXPECT_EQ(outcome.accepted()->request_id().rfind("req-", 0), 0u);
   ASSERT_NE(outcome.result(), nullptr);
-  // The refinement matched the 500 samples asked for; the finish then polished the verified
-  // pose over every source point, up to kFinishMaxSamples, and the result counts those.
-  int refinement_reports = 0;
+  // The bunny's scans are clean: the verified voxel alignment went straight to the plane-to-plane
+  // finish, which polished it over every source point, up to kFinishMaxSamples, and the result
+  // counts those.
+  std::vector<v1::Stage> stages;
   for (const v1::Progress* p : outcome.progress()) {
+    if (stages.empty() || stages.back() != p->stage()) stages.push_back(p->stage());
+  }
+  EXPECT_EQ(stages, (std::vector<v1::Stage>{v1::STAGE_COARSE, v1::STAGE_FINISH}));
+  EXPECT_EQ(outcome.result()->num_samples(), kFinishMaxSamples);
+  EXPECT_EQ(outcome.result()->auto_report().finish().samples(), kFinishMaxSamples);
+  EXPECT_FALSE(outcome.result()->has_ground_truth_error());
+  ASSERT_TRUE(outcome.result()->has_auto_report());  // unspecified is auto
+  EXPECT_TRUE(outcome.result()->auto_report().verified());
+
+  // Without the finish the MLS-SICP refinement runs, on the 500 samples asked for.
+  messages[0].mutable_header()->mutable_parameters()->set_auto_finish(false);
+  const RegisterOutcome refined = RunRegister(client_, messages);
+  ASSERT_TRUE(refined.status.ok()) << refined.status.error_message();
+  int refinement_reports = 0;
+  for (const v1::Progress* p : refined.progress()) {
     if (p->stage() != v1::STAGE_START) continue;
     const v1::CorrespondenceCounts& c = p->counts();
     EXPECT_EQ(c.matched() + c.rejected_normal() + c.rejected_curvature() + c.rejected_distance() +
@@ -114,11 +130,8 @@ TEST_F(RegistrationServiceTest, InlineSourceAndDefaultsWork) {
     ++refinement_reports;
   }
   EXPECT_GT(refinement_reports, 0);
-  EXPECT_EQ(outcome.result()->num_samples(), kFinishMaxSamples);
-  EXPECT_EQ(outcome.result()->auto_report().finish().samples(), kFinishMaxSamples);
-  EXPECT_FALSE(outcome.result()->has_ground_truth_error());
-  ASSERT_TRUE(outcome.result()->has_auto_report());  // unspecified is auto
-  EXPECT_TRUE(outcome.result()->auto_report().verified());
+  ASSERT_NE(refined.result(), nullptr);
+  EXPECT_EQ(refined.result()->num_samples(), 500);
 }
 
 // Method auto over the wire from a half-turned start: the stages stream in order, and the result
@@ -143,7 +156,9 @@ TEST_F(RegistrationServiceTest, AutoFromAHalfTurnStreamsItsStagesAndReportsItsCa
   EXPECT_EQ(stages[0], v1::STAGE_COARSE);
   EXPECT_EQ(stages[1], v1::STAGE_START);
   EXPECT_NE(std::find(stages.begin(), stages.end(), v1::STAGE_GLOBAL), stages.end());
-  EXPECT_EQ(stages[stages.size() - 2], v1::STAGE_FINAL);
+  // The chosen candidate's voxel alignment verified and went straight to the plane-to-plane
+  // finish (clean scans).
+  EXPECT_EQ(stages[stages.size() - 2], v1::STAGE_CANDIDATE);
   EXPECT_EQ(stages.back(), v1::STAGE_FINISH);
 
   const v1::Result& result = *outcome.result();

@@ -108,21 +108,29 @@ Vector6 SolveStep(const Matrix6& normal_matrix, const Vector6& gradient) {
   return (normal_matrix + ridge * Matrix6::Identity()).ldlt().solve(-gradient);
 }
 
-void MeasurePull(std::span<const Pull> pulls, const Vec3& centre, double lever,
-                 VerificationScore& score) {
-  if (pulls.size() < 12) return;
+// The residual across the target's plane, and its change under a step (rotation about `centre`
+// in units of `lever`, then translation).
+Vector6 StepJacobian(const Pull& p, const Vec3& centre, double lever) {
+  Vector6 j;
+  j.head<3>() = (p.x - centre).cross(p.normal) / lever;
+  j.tail<3>() = p.normal;
+  return j;
+}
+
+// Returns the step (zero when there is none).
+Vector6 MeasurePull(std::span<const Pull> pulls, const Vec3& centre, double lever,
+                    VerificationScore& score) {
+  if (pulls.size() < 12) return Vector6::Zero();
   Matrix6 normal_matrix = Matrix6::Zero();
   Vector6 gradient = Vector6::Zero();
   double sum_squared = 0.0;
   for (const Pull& p : pulls) {
-    Vector6 j;
-    j.head<3>() = (p.x - centre).cross(p.normal) / lever;
-    j.tail<3>() = p.normal;
+    const Vector6 j = StepJacobian(p, centre, lever);
     normal_matrix.noalias() += j * j.transpose();
     gradient += j * p.across;
     sum_squared += p.across * p.across;
   }
-  if (!(sum_squared > 0.0)) return;
+  if (!(sum_squared > 0.0)) return Vector6::Zero();
   const Vector6 step = SolveStep(normal_matrix, gradient);
   score.pull_fraction = std::clamp(-gradient.dot(step) / sum_squared, 0.0, 1.0);
   score.pull_rotation_deg = step.head<3>().norm() / lever * 180.0 / M_PI;
@@ -133,17 +141,26 @@ void MeasurePull(std::span<const Pull> pulls, const Vec3& centre, double lever,
         ((step.head<3>() / lever).cross(p.x - centre) + step.tail<3>()).squaredNorm();
   }
   score.pull_displacement = std::sqrt(displacement_squared / pulls.size());
+  return step;
 }
 
 // The residuals' shared part between neighbouring inliers: sqrt of the mean product of the
-// signed residuals of pairs within `radius` (signs made consistent by their normals), or 0.
-// Noise is independent from sample to sample and leaves about 0; a surface that is not the
-// target's shape (another object, a pose off the truth) leaves residuals that neighbours share.
-double CoherentResidual(std::span<const Pull> pulls, double radius) {
+// signed residuals of pairs within `radius` (signs made consistent by their normals), or 0. The
+// residuals are taken after the pull's `step`: what one rigid motion explains (an imprecise
+// pose's smooth residual field) is the pull's to judge. Noise is independent from sample to
+// sample and leaves about 0; a surface that is not the target's shape (another object) leaves
+// residuals that neighbours share and no rigid motion removes.
+double CoherentResidual(std::span<const Pull> pulls, double radius, const Vec3& centre,
+                        double lever, const Vector6& step) {
   if (pulls.size() < 12) return 0.0;
   std::vector<Vec3> positions;
+  std::vector<double> residuals;
   positions.reserve(pulls.size());
-  for (const Pull& p : pulls) positions.push_back(p.x);
+  residuals.reserve(pulls.size());
+  for (const Pull& p : pulls) {
+    positions.push_back(p.x);
+    residuals.push_back(p.across + StepJacobian(p, centre, lever).dot(step));
+  }
   const KdTree tree(positions);
   constexpr int kNeighbours = 7;  // the sample itself and six others
   std::uint32_t index[kNeighbours];
@@ -156,7 +173,7 @@ double CoherentResidual(std::span<const Pull> pulls, double radius) {
       const std::uint32_t j = index[k];
       if (j == i || distance_squared[k] > radius * radius) continue;
       const double sign = pulls[i].normal.dot(pulls[j].normal) < 0.0 ? -1.0 : 1.0;
-      sum += pulls[i].across * sign * pulls[j].across;
+      sum += residuals[i] * sign * residuals[j];
       ++pairs;
     }
   }
@@ -343,8 +360,8 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
     if (state[i]) radius_squared += (pose * points[i] - centre).squaredNorm();
   }
   const double lever = score.covered > 0 ? std::sqrt(radius_squared / score.covered) : 1.0;
-  MeasurePull(pulls, centre, lever, score);
-  score.coherent_residual = CoherentResidual(pulls, 2.0 * voxels.voxel);
+  const Vector6 pull_step = MeasurePull(pulls, centre, lever, score);
+  score.coherent_residual = CoherentResidual(pulls, 2.0 * voxels.voxel, centre, lever, pull_step);
   if (score.inliers > 0) {
     const double noise_sigma = score.inlier_distance / options.band_per_noise;
     score.settle_displacement =

@@ -50,11 +50,11 @@ struct VerificationOptions {
   // A uniform spread of residuals over the band has an RMS of 0.58 band; a real fit's (Gaussian,
   // even with the noise underestimated twofold) at most about 0.45.
   double max_rms_per_band = 0.5;
-  // The residuals' part that neighbouring inliers (within two working voxels) share, at most
-  // this many noise sigmas of the band. Noise shares nothing; at a right pose the shared part is
-  // the MLS surface's own bias, 0.2-0.45 sigma at sigma <= 0.8 d, up to 0.87 at 4 d (the radius
-  // grows with the noise), at most 0.71 on real scans (tuning sets, verification study). Views of
-  // two different objects moved onto each other that passed every other test share 0.87-1.23.
+  // The residuals' part that neighbouring inliers (within two working voxels) share, after the
+  // pull's rigid step, at most this many noise sigmas of the band. Noise shares nothing; at a
+  // right pose the shared part is the MLS surface's own bias: 0.15-0.57 sigma at sigma <= 0.8 d,
+  // up to 0.84 at 4 d (the radius grows with the noise), at most 0.69 on real scans (tuning
+  // sets, verification study). Registrations of two different objects share 0.84-1.34.
   double max_coherent_sigmas = 0.9;
   // Every direction of motion must be fixed by the agreeing samples to a standard error of at
   // most this many noise sigmas of the band (band / band_per_noise): the band then holds the
