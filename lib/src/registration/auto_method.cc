@@ -211,7 +211,7 @@ class AutoRegistration {
 
   // With a plane-to-plane finish to come, a voxel alignment that verifies goes straight to it:
   // the finish's Gauss-Newton steps over every source point converge from there to the same
-  // pose (tuning split, sigma 0: the same median error, 18 % less time). Not before an MLS
+  // pose (tuning split, sigma 0: the same median error, 14 % less time). Not before an MLS
   // finish: Sparse ICP's lp steps from the voxel pose end 5-40 % farther from the truth than
   // after a refinement on the samples (sigma 2 d, 10 of 48 problems).
   bool FinishesFromVoxels() const {

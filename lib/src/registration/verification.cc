@@ -108,8 +108,8 @@ Vector6 SolveStep(const Matrix6& normal_matrix, const Vector6& gradient) {
   return (normal_matrix + ridge * Matrix6::Identity()).ldlt().solve(-gradient);
 }
 
-// The residual across the target's plane, and its change under a step (rotation about `centre`
-// in units of `lever`, then translation).
+// How a pull's residual across the target's plane changes under a step (rotation about `centre`
+// in units of `lever`, then translation): residual + J . step.
 Vector6 StepJacobian(const Pull& p, const Vec3& centre, double lever) {
   Vector6 j;
   j.head<3>() = (p.x - centre).cross(p.normal) / lever;
