@@ -232,6 +232,13 @@ TEST_F(AlignScansServiceTest, MalformedHeadersAreRefusedNamingTheFieldAndOthersG
   }
   {
     auto messages = cached_pair();
+    messages[0].mutable_header()->set_overlap_distance(-2.0);
+    cases.push_back({"a negative overlap distance in the clouds' units", messages,
+                     grpc::StatusCode::INVALID_ARGUMENT,
+                     "overlap_distance: must be a positive length"});
+  }
+  {
+    auto messages = cached_pair();
     messages[0].mutable_header()->set_anchor(5);
     cases.push_back({"an anchor out of range", messages, grpc::StatusCode::INVALID_ARGUMENT,
                      "anchor: 5 is not a scan index"});
