@@ -89,24 +89,35 @@ void BM_MlsPatchProjection(benchmark::State& state) {
 }
 BENCHMARK(BM_MlsPatchProjection)->Arg(5)->Arg(8)->Unit(benchmark::kMicrosecond);
 
+// Second argument 1: each query keeps its AnchorCache from the previous projection, as the
+// MLS correspondence finder does (0: the anchors from the k-d tree every time).
 void BM_MlsPatchProjectionWarm(benchmark::State& state) {
   const BunnyPair& p = Pair();
   const MlsPatches patches = PatchesAt(p, static_cast<double>(state.range(0)));
+  const bool cached = state.range(1) != 0;
   // Previous projections of queries displaced by 0.5 d, as one ICP iteration moves them.
   const double d = p.target->sampling_distance();
   std::vector<Vec3> starts;
-  for (const Vec3& q : p.queries) {
-    const MlsProjection previous = patches.Project(q + Vec3(0.3, 0.3, 0.3) * d, true);
+  std::vector<MlsPatches::AnchorCache> caches(p.queries.size());
+  for (std::size_t i = 0; i < p.queries.size(); ++i) {
+    const Vec3& q = p.queries[i];
+    const MlsProjection previous = patches.Project(q + Vec3(0.3, 0.3, 0.3) * d, true, &caches[i]);
     starts.push_back(q - (q - previous.point).dot(previous.normal) * previous.normal);
   }
   for (auto _ : state) {
     for (std::size_t i = 0; i < p.queries.size(); ++i) {
-      benchmark::DoNotOptimize(patches.ProjectNear(p.queries[i], starts[i], true));
+      benchmark::DoNotOptimize(
+          patches.ProjectNear(p.queries[i], starts[i], true, cached ? &caches[i] : nullptr));
     }
   }
   state.SetItemsProcessed(state.iterations() * p.queries.size());
 }
-BENCHMARK(BM_MlsPatchProjectionWarm)->Arg(5)->Arg(8)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_MlsPatchProjectionWarm)
+    ->Args({5, 0})
+    ->Args({5, 1})
+    ->Args({8, 0})
+    ->Args({8, 1})
+    ->Unit(benchmark::kMicrosecond);
 
 // Argument 0: every part on first use (the library's default: a one-shot registration), 1: every
 // part with the target (surface, patch fits, features), 2: as a served target (surface and

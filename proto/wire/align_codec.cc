@@ -13,9 +13,8 @@ absl::StatusOr<AlignOptions> AlignOptionsFromProto(const v1::AlignScansHeader& h
   auto pairs = EnumFromWire(PairPolicyNames(), header.pairs(), options.pairs, "header.pairs");
   if (!pairs.ok()) return pairs.status();
   options.pairs = *pairs;
-  const v1::Method method =
-      header.method() == v1::METHOD_UNSPECIFIED ? v1::METHOD_MLS_SICP : header.method();
-  auto edge = OptionsFromProto(method, header.parameters());
+  // METHOD_UNSPECIFIED is auto, as for a registration and as the library's and CLI's default.
+  auto edge = OptionsFromProto(header.method(), header.parameters());
   if (!edge.ok()) return edge.status();
   options.edge = *std::move(edge);
   if (header.has_min_overlap()) options.min_overlap = header.min_overlap();

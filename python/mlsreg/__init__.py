@@ -33,7 +33,7 @@ import queue
 import threading
 import warnings
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any, Callable, Iterator, Optional, Sequence
+from typing import Any, Callable, Iterator, Optional, Sequence, Union
 
 import numpy as np
 
@@ -48,6 +48,10 @@ __all__ = [
 ]
 
 __version__ = "0.1.0"
+
+# A length: a number in units of d (the target's mean sampling distance) or a str with a unit,
+# as the CLI's flags take them ("20", "20d", "5m", "30cm", "5mm").
+Length = Union[float, str]
 
 
 def __dir__():
@@ -261,14 +265,16 @@ class AlignResult:
     seconds: float
 
 
-def align_scans(scans: Sequence, poses=None, pairs: str = "loop", method: str = "mls-sicp",
-                min_overlap: float = 0.3, overlap_distance_d: float = 20.0, anchor: int = 0,
+def align_scans(scans: Sequence, poses=None, pairs: str = "loop", method: str = "auto",
+                min_overlap: float = 0.3, overlap_distance_d: Length = 20.0, anchor: int = 0,
                 threads: int = 1, callback: Optional[Callable[[dict, int, int], Any]] = None,
                 **params) -> AlignResult:
     """Aligns many scans into the frame of scan ``anchor``: pairwise registrations
-    (``method``, MLS-SICP by default, with ``params`` from the parameter table) along ``pairs``
-    ("sequential", "loop" or "overlap"), then a pose graph that drops edges that disagree.
-    ``poses`` are initial poses (scan -> common frame), e.g. from ``read_poses``.
+    (``method``, auto by default as in the CLI, with ``params`` from the parameter table) along
+    ``pairs`` ("sequential", "loop" or "overlap"), then a pose graph that drops edges that
+    disagree. ``poses`` are initial poses (scan -> common frame), e.g. from ``read_poses``.
+    ``overlap_distance_d``: how near a sample must lie to the other scan to count as overlap
+    (``pairs="overlap"``); a number in d or a length such as ``"5m"``.
     ``callback(edge, done, total)`` runs after each edge; returning False cancels (mlsreg.Error,
     code CANCELLED). The GIL is released while aligning."""
     raw = _mlsreg._align_scans(list(scans), poses, pairs, method, min_overlap,
@@ -276,13 +282,14 @@ def align_scans(scans: Sequence, poses=None, pairs: str = "loop", method: str = 
     return AlignResult(**raw)
 
 
-def merge_scans(scans: Sequence, poses: Sequence, resample: bool = False, spacing_d: float = 1.0,
-                radius_d: float = 0.0, d: Optional[float] = None, threads: int = 1) -> Cloud:
+def merge_scans(scans: Sequence, poses: Sequence, resample: bool = False, spacing_d: Length = 1.0,
+                radius_d: Length = 0.0, d: Optional[float] = None, threads: int = 1) -> Cloud:
     """Every scan under its pose (e.g. ``align_scans(...).poses``) as one Cloud. With
     ``resample``, one point per voxel of ``spacing_d`` d projected onto the joint MLS surface of
     all scans (``radius_d`` d; 0: from the merged cloud's noise), with the surface's normals;
     ``d`` is the scans' sampling distance (``AlignResult.sampling_distance``; measured when
-    None). The GIL is released while resampling."""
+    None). ``spacing_d`` and ``radius_d`` are numbers in d or lengths such as ``"2cm"``. The GIL
+    is released while resampling."""
     raw = _mlsreg._merge_scans(list(scans), list(poses), resample, spacing_d, radius_d, d, threads)
     return Cloud(**raw)
 
@@ -396,8 +403,8 @@ class Client:
         return _result(raw, method, source)
 
     def align_scans(self, scans: Sequence, poses=None, pairs: str = "loop",
-                    method: str = "mls-sicp", min_overlap: float = 0.3,
-                    overlap_distance_d: float = 20.0, anchor: int = 0,
+                    method: str = "auto", min_overlap: float = 0.3,
+                    overlap_distance_d: Length = 20.0, anchor: int = 0,
                     callback: Optional[Callable[[dict, int, int], Any]] = None,
                     **params) -> AlignResult:
         """mlsreg.align_scans on the server (the AlignScans RPC): each scan is a ``str`` (the id

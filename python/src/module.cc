@@ -235,14 +235,14 @@ py::dict AlignEdgeToPython(const AlignEdge& e) {
 
 AlignOptions AlignOptionsFromPython(py::object poses, const std::string& pairs,
                                     const std::string& method, double min_overlap,
-                                    double overlap_distance_d, int anchor, int threads,
+                                    py::handle overlap_distance, int anchor, int threads,
                                     const py::dict& params) {
   CheckThreads(threads);
   AlignOptions options;
   options.edge = OptionsFromPython(method, params);
   options.pairs = ValueOrThrow(ParseEnum<PairPolicy>(PairPolicyNames(), pairs, "pairs"));
   options.min_overlap = min_overlap;
-  options.overlap_distance = {overlap_distance_d, false};
+  options.overlap_distance = LengthFromPython(overlap_distance, "overlap_distance_d");
   options.anchor = anchor;
   options.threads = threads;
   if (!poses.is_none()) {
@@ -278,14 +278,14 @@ std::function<void(const AlignEdge&, int, int)> OnEdge(CallbackBridge& bridge) {
 
 py::dict AlignScansFromPython(const py::list& scans, py::object poses, const std::string& pairs,
                               const std::string& method, double min_overlap,
-                              double overlap_distance_d, int anchor, int threads,
+                              py::handle overlap_distance, int anchor, int threads,
                               py::object callback, const py::dict& params) {
   std::vector<PointCloud> clouds;
   for (std::size_t i = 0; i < scans.size(); ++i) {
     clouds.push_back(CloudFromPython(scans[i], absl::StrCat("scans[", i, "]")));
   }
   const AlignOptions options = AlignOptionsFromPython(poses, pairs, method, min_overlap,
-                                                      overlap_distance_d, anchor, threads, params);
+                                                      overlap_distance, anchor, threads, params);
   CallbackBridge bridge(std::move(callback));
   AlignCallbacks callbacks;
   callbacks.should_stop = [&bridge] { return bridge.ShouldStop(); };
@@ -302,7 +302,7 @@ py::dict AlignScansFromPython(const py::list& scans, py::object poses, const std
 // The scans under their poses as one cloud; resampled onto the joint MLS surface when asked,
 // with d the scans' mean sampling distance unless given.
 py::dict MergeScansFromPython(const py::list& scans, const py::list& poses, bool resample,
-                              double spacing_d, double radius_d, py::object d, int threads) {
+                              py::handle spacing, py::handle radius, py::object d, int threads) {
   CheckThreads(threads);
   std::vector<PointCloud> clouds;
   std::vector<Matrix4> transforms;
@@ -322,8 +322,8 @@ py::dict MergeScansFromPython(const py::list& scans, const py::list& poses, bool
   const std::optional<double> given_d =
       d.is_none() ? std::nullopt : std::optional<double>(d.cast<double>());
   SurfaceResampling options;
-  options.spacing = {spacing_d, false};
-  options.radius = {radius_d, false};
+  options.spacing = LengthFromPython(spacing, "spacing_d");
+  options.radius = LengthFromPython(radius, "radius_d");
   options.threads = threads;
   absl::StatusOr<ResampledCloud> resampled;
   {
@@ -469,8 +469,8 @@ void BindClient(py::module_& m) {
            })
       .def("align_scans",
            [](Client& c, const py::list& scans, py::object poses, const std::string& pairs,
-              const std::string& method, double min_overlap, double overlap_distance_d, int anchor,
-              py::object callback, const py::dict& params) {
+              const std::string& method, double min_overlap, py::handle overlap_distance,
+              int anchor, py::object callback, const py::dict& params) {
              // A str is the id of a target on the server; anything else a cloud sent with the call.
              std::vector<client::RemoteScan> remote;
              for (std::size_t i = 0; i < scans.size(); ++i) {
@@ -484,7 +484,7 @@ void BindClient(py::module_& m) {
                remote.push_back(std::move(scan));
              }
              const AlignOptions options = AlignOptionsFromPython(
-                 poses, pairs, method, min_overlap, overlap_distance_d, anchor, 1, params);
+                 poses, pairs, method, min_overlap, overlap_distance, anchor, 1, params);
              CallbackBridge bridge(std::move(callback));
              absl::StatusOr<client::RemoteAlignResult> aligned;
              {

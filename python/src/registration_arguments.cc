@@ -101,6 +101,14 @@ py::dict AutoToPython(const AutoReport& report) {
 
 }  // namespace
 
+GivenLength LengthFromPython(py::handle value, std::string_view field) {
+  if (py::isinstance<py::bool_>(value) || value.is_none()) {
+    throw py::value_error(
+        absl::StrCat(std::string(field), ": a number (in d) or a length such as \"5m\""));
+  }
+  return ValueOrThrow(ParseLength(ParameterText(value), field));
+}
+
 RegistrationOptions OptionsFromPython(std::string_view method, const py::dict& params) {
   RegistrationOptions options;
   options.method = ValueOrThrow(ParseMethod(method));

@@ -8,6 +8,7 @@
 
 #include <string_view>
 
+#include "mlsreg/core/length.h"
 #include "mlsreg/core/transform.h"
 #include "mlsreg/registration/options.h"
 #include "mlsreg/registration/result.h"
@@ -20,6 +21,10 @@ namespace py = pybind11;
 RegistrationOptions OptionsFromPython(std::string_view method, const py::dict& params);
 // A 4x4 rigid transform (array-like); None is the identity. `field` names it in messages.
 Matrix4 TransformFromPython(py::handle object, std::string_view field);
+
+// A length as the CLI takes it: a number is in units of d, a str is ParseLength's text ("20",
+// "20d", "5m", "30cm"). ValueError naming `field` otherwise.
+GivenLength LengthFromPython(py::handle value, std::string_view field);
 
 // Requires the GIL.
 py::dict ReportToPython(const IterationReport& report);

@@ -65,6 +65,28 @@ def test_merge_scans_as_is_and_resampled_onto_the_joint_surface(scans, truth):
         mlsreg.merge_scans(scans, poses, resample=True, spacing_d=0)
 
 
+def test_lengths_in_metres_are_the_same_lengths_in_d(scans, truth):
+    """overlap_distance_d, spacing_d and radius_d take "…m" as the CLI's flags do."""
+    to0 = np.linalg.inv(truth[0])
+    poses = [to0 @ t for t in truth]
+    in_d = mlsreg.align_scans(scans, poses=poses, pairs="overlap", overlap_distance_d=2,
+                              max_iterations=2)
+    d = in_d.sampling_distance
+    in_m = mlsreg.align_scans(scans, poses=poses, pairs="overlap",
+                              overlap_distance_d=f"{2 * d!r}m", max_iterations=2)
+    assert len(in_d.edges) >= 2
+    assert [(e["from"], e["to"]) for e in in_m.edges] == [(e["from"], e["to"]) for e in in_d.edges]
+    merged_d = mlsreg.merge_scans(scans, poses, resample=True, spacing_d=3, radius_d=6, d=d)
+    merged_m = mlsreg.merge_scans(scans, poses, resample=True, spacing_d=f"{3 * d * 1000!r}mm",
+                                  radius_d=f"{6 * d!r} m", d=d)
+    assert len(merged_m) == len(merged_d)
+    assert np.abs(merged_m.points - merged_d.points).max() < 1e-9
+    with pytest.raises(ValueError, match="spacing_d: '3 parsecs' is not a length"):
+        mlsreg.merge_scans(scans, poses, resample=True, spacing_d="3 parsecs")
+    with pytest.raises(ValueError, match="overlap_distance_d: a number"):
+        mlsreg.align_scans(scans, overlap_distance_d=None)
+
+
 def test_a_callback_returning_false_cancels(scans, truth):
     with pytest.raises(mlsreg.Error) as raised:
         mlsreg.align_scans(scans, poses=truth, callback=lambda e, done, total: False)

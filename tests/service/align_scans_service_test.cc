@@ -131,6 +131,17 @@ TEST(AlignCodecTest, TheOverlapDistanceKeepsItsUnit) {
   }
 }
 
+// A header that names no method gets the library's (and the CLI's) default edges: auto.
+TEST(AlignCodecTest, AnUnspecifiedMethodIsAuto) {
+  v1::AlignScansHeader header;
+  auto options = wire::AlignOptionsFromProto(header);
+  ASSERT_TRUE(options.ok()) << options.status();
+  EXPECT_EQ(options->edge.method, Method::kAuto);
+  EXPECT_EQ(options->edge.method, AlignOptions().edge.method);
+  header.set_method(v1::METHOD_MLS_SICP);
+  EXPECT_EQ(wire::AlignOptionsFromProto(header)->edge.method, Method::kMlsSicp);
+}
+
 TEST_F(AlignScansServiceTest, UploadedScansGiveTheLibrarysPosesAndEveryEdgeStreams) {
   ASSERT_NO_FATAL_FAILURE(StartWith(TestConfig()));
   const AlignOptions options = QuickAlign();

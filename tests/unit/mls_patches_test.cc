@@ -221,6 +221,38 @@ TEST(MlsPatchesTest, FittedOnFirstUseTheyProjectAsThoseFittedWithTheAnchors) {
   EXPECT_LT(lazy->fitted(), all.size() / 4);
 }
 
+TEST(MlsPatchesTest, AnchorCacheGivesTheSameProjectionsWithFewerTreeSearches) {
+  // Queries on random walks near a noisy sphere, as ICP moves a source point (steps of 0.2 d),
+  // with a jump of 3 r now and then: with a cache per query the projections are bit for bit
+  // those without, and the cache is refilled (its centre moves) at a small share of the steps.
+  const PointCloud sphere = SampleSphere(8000, 1.0, -0.5, 33);
+  const KdTree tree(sphere.points);
+  const double d = SamplingDistance(sphere.points, tree), r = 5.0 * d;
+  const MlsPatches patches = BuildPatches(sphere, tree, r);
+  std::mt19937_64 rng(41);
+  std::normal_distribution<double> g(0.0, 1.0);
+  int steps = 0, refills = 0;
+  for (int walk = 0; walk < 40; ++walk) {
+    Vec3 q = Vec3(g(rng), g(rng), std::abs(g(rng)) + 1.0).normalized();
+    MlsPatches::AnchorCache cache;
+    for (int step = 0; step < 30; ++step, ++steps) {
+      q += (step % 10 == 9 ? 3.0 * r : 0.2 * d) * Vec3(g(rng), g(rng), g(rng)).normalized();
+      const Vec3 center_before = cache.center;
+      const MlsProjection cold = patches.Project(q, true);
+      const MlsProjection cached = patches.Project(q, true, &cache);
+      ASSERT_EQ(cached.status, cold.status);
+      EXPECT_EQ(cached.point, cold.point) << "walk " << walk << " step " << step;
+      EXPECT_EQ(cached.normal, cold.normal);
+      EXPECT_EQ(cached.curvature, cold.curvature);
+      const Vec3 near = cold.point;
+      EXPECT_EQ(patches.ProjectNear(q, near, true, &cache).point,
+                patches.ProjectNear(q, near, true).point);
+      refills += cache.center != center_before;
+    }
+  }
+  EXPECT_LT(refills, steps / 2) << refills << " refills in " << steps << " steps";
+}
+
 TEST(MlsPatchesTest, BuildIsCancellable) {
   const PointCloud sphere = SampleSphere(8000, 1.0, -0.5, 41);
   const KdTree tree(sphere.points);

@@ -84,6 +84,10 @@ void MlsCorrespondenceFinder::Find(std::span<const Vec3> queries, std::span<Corr
     previous_.assign(queries.size(), MlsProjection{});
     status_.assign(queries.size(), ProjectionStatus::kTooFewNeighbors);
   }
+  if (anchors_.size() != queries.size() || anchors_of_ != patches_) {
+    anchors_.assign(patches_ ? queries.size() : 0, MlsPatches::AnchorCache{});
+    anchors_of_ = patches_;
+  }
   last_iterations_ = 0;
   if (threads_state_.size() < static_cast<std::size_t>(threads_)) threads_state_.resize(threads_);
   for (ThreadState& state : threads_state_) state.iterations = 0;
@@ -97,10 +101,12 @@ void MlsCorrespondenceFinder::Find(std::span<const Vec3> queries, std::span<Corr
 }
 
 MlsProjection MlsCorrespondenceFinder::ProjectOne(const Vec3& query, const Vec3* start,
-                                                  MlsProjector::Workspace& workspace) const {
+                                                  MlsProjector::Workspace& workspace,
+                                                  MlsPatches::AnchorCache& anchors) const {
   const bool seed = far_queries_ != FarQueryPolicy::kDrop;
   if (patches_) {
-    return start ? patches_->ProjectNear(query, *start, seed) : patches_->Project(query, seed);
+    return start ? patches_->ProjectNear(query, *start, seed, &anchors)
+                 : patches_->Project(query, seed, &anchors);
   }
   return start ? projector_.ProjectFrom(*start, workspace) : projector_.Project(query, workspace);
 }
@@ -126,7 +132,9 @@ bool MlsCorrespondenceFinder::FindRange(std::span<const Vec3> queries,
                       !previous.seeded_from_nearest_sample &&
                       (q - previous.point).squaredNorm() < radius_ * radius_;
     const Vec3 start = q - (q - previous.point).dot(previous.normal) * previous.normal;
-    const MlsProjection projection = ProjectOne(q, warm ? &start : nullptr, workspace);
+    MlsPatches::AnchorCache unused;
+    MlsPatches::AnchorCache& anchors = patches_ ? anchors_[i] : unused;
+    const MlsProjection projection = ProjectOne(q, warm ? &start : nullptr, workspace, anchors);
     iterations += projection.iterations;
     Correspondence& c = out[i];
     c.point = projection.point;

@@ -73,8 +73,8 @@ class MlsCorrespondenceFinder final : public CorrespondenceFinder {
   bool FindRange(std::span<const Vec3> queries, std::span<Correspondence> out, std::size_t begin,
                  std::size_t end, ThreadState& state);
   // The projection of `query`, from `start` when warm.
-  MlsProjection ProjectOne(const Vec3& query, const Vec3* start,
-                           MlsProjector::Workspace& workspace) const;
+  MlsProjection ProjectOne(const Vec3& query, const Vec3* start, MlsProjector::Workspace& workspace,
+                           MlsPatches::AnchorCache& anchors) const;
   // Builds the patches this finder needs when the target's do not fit; false when stopped.
   bool EnsurePatches();
 
@@ -89,6 +89,9 @@ class MlsCorrespondenceFinder final : public CorrespondenceFinder {
   std::optional<MlsPatches> own_patches_;
   std::vector<ThreadState> threads_state_;
   std::vector<MlsProjection> previous_;
+  // Per query: the patches' anchors nearest its last projection (valid for anchors_of_ only).
+  std::vector<MlsPatches::AnchorCache> anchors_;
+  const MlsPatches* anchors_of_ = nullptr;
   std::vector<ProjectionStatus> status_;
   long last_iterations_ = 0;
 };

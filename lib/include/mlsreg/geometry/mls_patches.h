@@ -17,6 +17,10 @@
 // point already on it), and the k surface points and normals are blended with Wendland weights
 // that fall to zero at the (k+1)-th anchor: a partition of unity, continuous in q. An anchor whose
 // fit failed (fewer than 3 samples within r) takes no part.
+// The k+1 nearest anchors come from a k-d tree, or from an AnchorCache: the m > k+1 anchors
+// nearest an earlier point c, reused for a point p while they provably hold p's k+1 nearest
+// (every other anchor lies at least d_m - |p - c| from p). An ICP iteration moves a query by
+// a fraction of the anchor spacing, so one cache per query serves most of its projections.
 // Departure from the paper: Algorithm 1 refits at the iterate; the patches refit only at anchors
 // (see the README's departures). A plane is reproduced exactly.
 #pragma once
@@ -45,6 +49,17 @@ class MlsPatches {
   static constexpr double kAnchorSpacingPerRadius = 0.5;
   static constexpr int kBlendedPatches = 4;
 
+  // The anchors nearest a point, kept between projections of one query (see above). Starts
+  // empty; owned by the caller, one per query, used by one thread at a time.
+  struct AnchorCache {
+    static constexpr int kAnchors = 12;
+    Vec3 center = Vec3::Zero();
+    // Every anchor within `reach` of `center` is cached (infinite: every anchor is).
+    double reach = -1.0;  // negative: empty
+    int count = 0;
+    std::uint32_t index[kAnchors];
+  };
+
   // `points` and `tree` must outlive the patches; `mls` and `viewpoint` (output normals point
   // toward it; without one their sign is arbitrary but consistent per query) as for MlsProjector.
   // With kAll: CANCELLED when `should_stop` says stop, FAILED_PRECONDITION when no anchor could
@@ -62,7 +77,11 @@ class MlsPatches {
   MlsProjection Project(const Vec3& query, bool seed_far_queries) const;
   // The same, with the patches chosen around `near`, a point already close to the surface (a
   // warm start: the query on its previous projection's tangent plane). One blend instead of two.
-  MlsProjection ProjectNear(const Vec3& query, const Vec3& near, bool seed_far_queries) const;
+  // With `cache`, the anchors come from it where they can (the result is the same, bit for bit,
+  // with or without it).
+  MlsProjection ProjectNear(const Vec3& query, const Vec3& near, bool seed_far_queries,
+                            AnchorCache* cache = nullptr) const;
+  MlsProjection Project(const Vec3& query, bool seed_far_queries, AnchorCache* cache) const;
 
   double radius() const { return mls_.radius; }
   int polynomial_degree() const { return mls_.polynomial_degree; }
@@ -100,9 +119,13 @@ class MlsPatches {
   bool Fit(std::size_t i, MlsProjector::Workspace& workspace, Patch& out) const;
   // Anchor i's patch into `out`, fitting it now if no thread has; false when its fit failed.
   bool PatchAt(std::size_t i, Patch& out) const;
-  Blend BlendAt(const Vec3& query, const Vec3& near) const;
-  MlsProjection Finish(const Vec3& query, const Vec3& near, bool seed_far_queries,
-                       int blends) const;
+  // The k+1 anchors nearest `near`, sorted by (distance, index), from `cache` when it holds
+  // them (refilled around `near` when it does not). Returns how many were found.
+  std::size_t NearestAnchors(const Vec3& near, AnchorCache* cache, std::uint32_t* index,
+                             double* distance_squared) const;
+  Blend BlendAt(const Vec3& query, const Vec3& near, AnchorCache* cache = nullptr) const;
+  MlsProjection Finish(const Vec3& query, const Vec3& near, bool seed_far_queries, int blends,
+                       AnchorCache* cache) const;
 
   const std::vector<Vec3>* points_;
   const KdTree* tree_;

@@ -8,7 +8,7 @@
 namespace mlsreg::wire {
 
 // Every option of the header (pairs, method, parameters, overlaps, anchor, initial poses),
-// library defaults for unset fields and MLS-SICP for METHOD_UNSPECIFIED; errors name the field
+// library defaults for unset fields and auto for METHOD_UNSPECIFIED; errors name the field
 // ("header.initial_poses[2]: ..."). The scan count is checked by the library.
 absl::StatusOr<AlignOptions> AlignOptionsFromProto(const v1::AlignScansHeader& header);
 // Every option set explicitly; the scans are left to the caller.
