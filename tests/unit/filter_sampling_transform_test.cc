@@ -1,14 +1,17 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <random>
 
 #include "mlsreg/core/length.h"
 #include "mlsreg/core/transform.h"
 #include "mlsreg/correspondences/correspondence_filter.h"
 #include "mlsreg/evaluation/metrics.h"
 #include "mlsreg/geometry/kd_tree.h"
+#include "mlsreg/geometry/neighbor_cache.h"
 #include "mlsreg/geometry/sampling.h"
 #include "support/synthetic.h"
 
@@ -139,6 +142,45 @@ TEST(KdTreeTest, MatchesBruteForce) {
   std::size_t brute = 0;
   for (const Vec3& p : cloud.points) brute += (p - q).norm() < 0.2;
   EXPECT_EQ(found.size(), brute);
+}
+
+// Queries on random walks (steps of a tenth of the spacing, a jump across the cloud now and
+// then): the cache's answers are the brute-force k nearest, and most come from the cache.
+TEST(NeighborCacheTest, AnswersAreTheNearestAndMostComeFromTheCache) {
+  const PointCloud cloud = testing::SampleBumpySurface(3000, -1, 1, 3);
+  const KdTree tree(cloud.points);
+  const double spacing = SamplingDistance(cloud.points, tree);
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> g(0.0, 1.0);
+  int queries = 0, refills = 0;
+  for (const int k : {1, 5}) {
+    NeighborCache<8> cache;
+    Vec3 q(0.0, 0.0, 0.0);
+    for (int step = 0; step < 400; ++step, ++queries) {
+      q += (step % 50 == 49 ? 0.5 : 0.1 * spacing) * Vec3(g(rng), g(rng), 0.2 * g(rng));
+      q = q.cwiseMax(Vec3(-1, -1, -1)).cwiseMin(Vec3(1, 1, 1));
+      const Vec3 before = cache.center;
+      std::uint32_t index[5];
+      double distance_squared[5];
+      ASSERT_EQ(CachedKnn(tree, cloud.points, q, k, &cache, index, distance_squared),
+                static_cast<std::size_t>(k));
+      refills += cache.center != before;
+      std::vector<std::pair<double, std::uint32_t>> brute;
+      for (std::uint32_t i = 0; i < cloud.size(); ++i) {
+        brute.push_back({(cloud.points[i] - q).squaredNorm(), i});
+      }
+      std::partial_sort(brute.begin(), brute.begin() + k, brute.end());
+      for (int j = 0; j < k; ++j) {
+        EXPECT_EQ(index[j], brute[j].second) << "k " << k << " step " << step << " j " << j;
+        EXPECT_EQ(distance_squared[j], brute[j].first);
+      }
+      if (k == 1) {
+        const Neighbor nearest = CachedNearest(tree, cloud.points, q, cache);
+        EXPECT_EQ(nearest.index, brute[0].second);
+      }
+    }
+  }
+  EXPECT_LT(refills, queries / 3) << refills << " refills in " << queries << " queries";
 }
 
 TEST(TransformTest, ParsesRowMajorAndRejectsNonRigid) {

@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <limits>
 
 #include "mlsreg/core/parallel_for.h"
+#include "mlsreg/geometry/neighbor_cache.h"
 #include "mlsreg/geometry/sampling.h"
 #include "mlsreg/geometry/wendland.h"
 
@@ -23,17 +23,6 @@ HeightWithGradient EvaluateHeight(const std::array<double, 10>& c, double x, dou
           c[1] + 2.0 * c[3] * x + c[4] * y + 3.0 * c[6] * xx + 2.0 * c[7] * xy + c[8] * yy,
           c[2] + c[4] * x + 2.0 * c[5] * y + c[7] * xx + 2.0 * c[8] * xy + 3.0 * c[9] * yy};
 }
-
-// Candidates ordered by distance, then index: one strict order for the tree's and the cache's
-// answers, so that both blend the same patches in the same order.
-struct Candidate {
-  double distance_squared;
-  std::uint32_t index;
-  bool operator<(const Candidate& other) const {
-    return distance_squared != other.distance_squared ? distance_squared < other.distance_squared
-                                                      : index < other.index;
-  }
-};
 
 }  // namespace
 
@@ -128,61 +117,13 @@ std::size_t MlsPatches::fitted() const {
   return n;
 }
 
-std::size_t MlsPatches::NearestAnchors(const Vec3& near, AnchorCache* cache, std::uint32_t* index,
-                                       double* distance_squared) const {
-  constexpr int kWanted = kBlendedPatches + 1;
-  constexpr int kCached = AnchorCache::kAnchors;
-  static_assert(kCached > kWanted);
-  Candidate candidates[kCached];
-  int count = 0;
-  const auto select = [&](int wanted) {
-    for (int j = 0; j < count; ++j) {
-      candidates[j].distance_squared = (anchors_[candidates[j].index] - near).squaredNorm();
-    }
-    const int n = std::min(count, wanted);
-    std::partial_sort(candidates, candidates + n, candidates + count);
-    return n;
-  };
-  const auto write = [&](int n) {
-    for (int j = 0; j < n; ++j) {
-      index[j] = candidates[j].index;
-      distance_squared[j] = candidates[j].distance_squared;
-    }
-    return static_cast<std::size_t>(n);
-  };
-  if (cache != nullptr && cache->reach >= 0.0) {
-    count = cache->count;
-    for (int j = 0; j < count; ++j) candidates[j].index = cache->index[j];
-    const int n = select(kWanted);
-    // Every anchor outside the cache lies at least `limit` from `near`.
-    const double limit = cache->reach - (near - cache->center).norm();
-    if (n > 0 && (std::isinf(limit) ||
-                  (limit > 0.0 && candidates[n - 1].distance_squared <= limit * limit))) {
-      return write(n);
-    }
-  }
-  const int asked = cache != nullptr ? kCached : kWanted;
-  std::uint32_t found_index[kCached];
-  double found_distance_squared[kCached];
-  count = static_cast<int>(anchor_tree_->Knn(near, asked, found_index, found_distance_squared));
-  for (int j = 0; j < count; ++j) candidates[j].index = found_index[j];
-  if (cache != nullptr) {
-    cache->center = near;
-    cache->count = count;
-    std::copy(found_index, found_index + count, cache->index);
-    // Slightly inside the tree's m-th distance, so that its rounding never matters.
-    cache->reach = count < kCached ? std::numeric_limits<double>::infinity()
-                                   : std::sqrt(found_distance_squared[count - 1]) * (1.0 - 1e-9);
-  }
-  return write(select(kWanted));
-}
-
 MlsPatches::Blend MlsPatches::BlendAt(const Vec3& query, const Vec3& near,
                                       AnchorCache* cache) const {
   constexpr int k = kBlendedPatches;
   std::uint32_t index[k + 1];
   double distance_squared[k + 1];
-  const std::size_t found = NearestAnchors(near, cache, index, distance_squared);
+  const std::size_t found =
+      CachedKnn(*anchor_tree_, anchors_, near, k + 1, cache, index, distance_squared);
   Blend blend;
   if (found == 0) return blend;
   blend.nearest_distance = std::sqrt(distance_squared[0]);

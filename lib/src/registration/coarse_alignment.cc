@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "icp_loop.h"
+#include "mlsreg/geometry/neighbor_cache.h"
 #include "mlsreg/solvers/rigid_motion.h"
 
 namespace mlsreg::internal {
@@ -26,7 +27,8 @@ class VoxelPlaneStep final : public IcpStep {
         samples_(source.points),
         capture_(schedule.start_capture),
         final_capture_(schedule.final_capture),
-        d_(d) {}
+        d_(d),
+        nearest_(source.points.size()) {}
 
   bool Match(const RigidTransform& pose, IterationReport& report) override {
     h_.setZero();
@@ -34,9 +36,9 @@ class VoxelPlaneStep final : public IcpStep {
     const double capture_squared = capture_ * capture_;
     const double kernel_squared = std::pow(kKernelPerCapture * capture_, 2);
     double sum_squared = 0.0;
-    for (const Vec3& s : samples_) {
-      const Vec3 x = pose * s;
-      const Neighbor nn = target_.tree->Nearest(x);
+    for (std::size_t i = 0; i < samples_.size(); ++i) {
+      const Vec3 x = pose * samples_[i];
+      const Neighbor nn = CachedNearest(*target_.tree, target_.points, x, nearest_[i]);
       if (nn.distance_squared > capture_squared) {
         ++report.counts.rejected_distance;
         continue;
@@ -78,6 +80,8 @@ class VoxelPlaneStep final : public IcpStep {
   const std::vector<Vec3>& samples_;
   double capture_, final_capture_;
   double d_;
+  // Per sample: the target voxels nearest its last position (an iteration moves it by little).
+  std::vector<NeighborCache<8>> nearest_;
   Matrix6 h_;
   Vector6 g_;
 };

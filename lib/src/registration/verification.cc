@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "absl/strings/str_format.h"
+#include "mlsreg/geometry/neighbor_cache.h"
 #include "mlsreg/geometry/noise_estimate.h"
 #include "mlsreg/geometry/weighted_covariance.h"
 #include "mlsreg/solvers/rigid_motion.h"
@@ -42,8 +43,16 @@ struct SurfaceHit {
 // them, where the nearest sample alone is biased toward `x`), with their normal when they span a
 // plane and their voxel's otherwise (on a LiDAR's far rings the nearest samples lie along one
 // ring, a line whose plane is anyone's guess).
-// `voxel`: the target's voxel nearest `x` (the caller's coverage test found it).
-SurfaceHit HitSurface(const Target& target, const Vec3& x, std::uint32_t voxel) {
+// Per sample, what its last pass found near it: the passes below move a sample by little.
+struct SampleCaches {
+  NeighborCache<8> voxels;
+  MlsPatches::AnchorCache anchors;
+};
+
+// `voxel`: the target's voxel nearest `x` (the caller's coverage test found it); `anchors`: the
+// sample's SampleCaches::anchors.
+SurfaceHit HitSurface(const Target& target, const Vec3& x, std::uint32_t voxel,
+                      MlsPatches::AnchorCache& anchors) {
   const VoxelCloud& voxels = target.voxel_cloud();
   SurfaceHit hit;
   // Only a flat voxel's spread is noise; elsewhere it is mostly shape.
@@ -51,7 +60,7 @@ SurfaceHit HitSurface(const Target& target, const Vec3& x, std::uint32_t voxel) 
     hit.local_noise = voxels.spread[voxel];
   }
   if (const MlsPatches* patches = target.mls_patches(); patches != nullptr) {
-    const MlsProjection p = patches->Project(x, /*seed_far_queries=*/false);
+    const MlsProjection p = patches->Project(x, /*seed_far_queries=*/false, &anchors);
     if (p.status == ProjectionStatus::kOk) {
       hit.normal = p.normal;
       hit.across = (x - p.point).dot(p.normal);
@@ -191,9 +200,9 @@ constexpr int kSettleSteps = 6;
 constexpr double kSettleTolerancePerNoise = 0.01;
 template <typename BandOf>
 double SettleDisplacement(const Target& target, std::span<const Vec3> points,
-                          std::span<const std::uint8_t> state, const RigidTransform& pose,
-                          const Vec3& centre, double lever, double coverage, double tolerance,
-                          const BandOf& band_of) {
+                          std::span<const std::uint8_t> state, std::span<SampleCaches> caches,
+                          const RigidTransform& pose, const Vec3& centre, double lever,
+                          double coverage, double tolerance, const BandOf& band_of) {
   const VoxelCloud& voxels = target.voxel_cloud();
   RigidTransform current = pose;
   for (int step_index = 0; step_index < kSettleSteps; ++step_index) {
@@ -202,9 +211,9 @@ double SettleDisplacement(const Target& target, std::span<const Vec3> points,
     int used = 0;
     for (std::size_t i = 0; i < points.size(); ++i) {
       const Vec3 x = current * points[i];
-      const Neighbor voxel = voxels.tree->Nearest(x);
+      const Neighbor voxel = CachedNearest(*voxels.tree, voxels.points, x, caches[i].voxels);
       if (voxel.distance_squared > coverage * coverage) continue;
-      const SurfaceHit hit = HitSurface(target, x, voxel.index);
+      const SurfaceHit hit = HitSurface(target, x, voxel.index, caches[i].anchors);
       if (hit.distance > band_of(hit) || !(hit.normal.squaredNorm() > 0.0)) continue;
       Vector6 j;
       j.head<3>() = (x - centre).cross(hit.normal) / lever;
@@ -317,18 +326,19 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   // Pass 1: coverage and agreement, and the covered samples' centre.
   std::vector<std::uint8_t> state(points.size(), 0);              // 1 covered, 2 inlier
   std::vector<Vec3> target_normals(points.size(), Vec3::Zero());  // where each sample lands
+  std::vector<SampleCaches> caches(points.size());
   std::vector<Pull> pulls;  // the inliers' residuals across the target's local planes
   pulls.reserve(points.size());
   double sum_squared = 0.0, sum_normalised = 0.0, sum_band = 0.0;
   Vec3 centre = Vec3::Zero();
   for (std::size_t i = 0; i < points.size(); ++i) {
     const Vec3 x = pose * points[i];
-    const Neighbor voxel = voxels.tree->Nearest(x);
+    const Neighbor voxel = CachedNearest(*voxels.tree, voxels.points, x, caches[i].voxels);
     if (voxel.distance_squared > coverage * coverage) continue;
     state[i] = 1;
     ++score.covered;
     centre += x;
-    const SurfaceHit hit = HitSurface(target, x, voxel.index);
+    const SurfaceHit hit = HitSurface(target, x, voxel.index, caches[i].anchors);
     target_normals[i] = hit.normal;
     const double local_band = band_of(hit);
     if (hit.distance > local_band) continue;
@@ -365,7 +375,7 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   if (score.inliers > 0) {
     const double noise_sigma = score.inlier_distance / options.band_per_noise;
     score.settle_displacement =
-        SettleDisplacement(target, points, state, pose, centre, lever, coverage,
+        SettleDisplacement(target, points, state, caches, pose, centre, lever, coverage,
                            std::max(kSettleTolerancePerNoise * noise_sigma, 1e-9 * lever), band_of);
   }
   // Pass 3: how precisely the agreeing samples fix each direction of motion. The point-to-plane

@@ -24,16 +24,21 @@ absl::Status ValidateSparseIcpOptions(const SparseIcpOptions& o) {
   return absl::OkStatus();
 }
 
-double LpShrinkWeight(double h_norm, double mu, double p) {
-  const double ba = std::pow((2.0 / mu) * (1.0 - p), 1.0 / (2.0 - p));
-  const double ha = ba + (p / mu) * std::pow(ba, p - 1.0);
-  if (h_norm <= ha) return 0.0;
-  double beta = (ba / h_norm + 1.0) / 2.0;
-  for (int k = 0; k < 3; ++k) {
-    beta = 1.0 - (p / mu) * std::pow(h_norm, p - 2.0) * std::pow(beta, p - 1.0);
-  }
+LpShrink::LpShrink(double mu, double p)
+    : p_(p),
+      p_over_mu_(p / mu),
+      ba_(std::pow((2.0 / mu) * (1.0 - p), 1.0 / (2.0 - p))),
+      ha_(ba_ + p_over_mu_ * std::pow(ba_, p - 1.0)) {}
+
+double LpShrink::operator()(double h_norm) const {
+  if (h_norm <= ha_) return 0.0;
+  double beta = (ba_ / h_norm + 1.0) / 2.0;
+  const double scale = p_over_mu_ * std::pow(h_norm, p_ - 2.0);
+  for (int k = 0; k < 3; ++k) beta = 1.0 - scale * std::pow(beta, p_ - 1.0);
   return beta;
 }
+
+double LpShrinkWeight(double h_norm, double mu, double p) { return LpShrink(mu, p)(h_norm); }
 
 void SparseIcpSolver::Reset(std::size_t samples) {
   multiplier1_.assign(samples, 0.0);
@@ -124,12 +129,13 @@ RigidTransform SparseIcpSolver::RunAdmm(std::span<const std::uint8_t> active,
   for (int outer = 0; outer < options_.max_outer; ++outer) {
     ++last_outer_;
     double dual = 0.0;
+    const LpShrink shrink(mu, options_.p);
     for (int inner = 0; inner < options_.max_inner; ++inner) {
       for (std::size_t i = 0; i < m; ++i) {
         if (!active[i]) continue;
         // Concrete type, not auto: an Eigen expression would outlive its temporaries.
         const typename Metric::Residual h = Metric::Of(xs_[i], qs_[i], ns_[i]) + multiplier[i] / mu;
-        z[i] = LpShrinkWeight(Metric::Norm(h), mu, options_.p) * h;
+        z[i] = shrink(Metric::Norm(h)) * h;
         shifted[i] = z[i] - multiplier[i] / mu;
       }
       std::copy(xs_.begin(), xs_.end(), previous_.begin());

@@ -17,10 +17,10 @@
 // point already on it), and the k surface points and normals are blended with Wendland weights
 // that fall to zero at the (k+1)-th anchor: a partition of unity, continuous in q. An anchor whose
 // fit failed (fewer than 3 samples within r) takes no part.
-// The k+1 nearest anchors come from a k-d tree, or from an AnchorCache: the m > k+1 anchors
-// nearest an earlier point c, reused for a point p while they provably hold p's k+1 nearest
-// (every other anchor lies at least d_m - |p - c| from p). An ICP iteration moves a query by
-// a fraction of the anchor spacing, so one cache per query serves most of its projections.
+// The k+1 nearest anchors come from a k-d tree, or from a query's AnchorCache (a NeighborCache:
+// the 12 anchors nearest its last blend point, reused while they provably hold the k+1 nearest).
+// An ICP iteration moves a query by a fraction of the anchor spacing, so one cache per query
+// serves most of its projections.
 // Departure from the paper: Algorithm 1 refits at the iterate; the patches refit only at anchors
 // (see the README's departures). A plane is reproduced exactly.
 #pragma once
@@ -37,6 +37,7 @@
 #include "mlsreg/core/stop_check.h"
 #include "mlsreg/geometry/kd_tree.h"
 #include "mlsreg/geometry/mls_projector.h"
+#include "mlsreg/geometry/neighbor_cache.h"
 
 namespace mlsreg {
 
@@ -49,16 +50,9 @@ class MlsPatches {
   static constexpr double kAnchorSpacingPerRadius = 0.5;
   static constexpr int kBlendedPatches = 4;
 
-  // The anchors nearest a point, kept between projections of one query (see above). Starts
-  // empty; owned by the caller, one per query, used by one thread at a time.
-  struct AnchorCache {
-    static constexpr int kAnchors = 12;
-    Vec3 center = Vec3::Zero();
-    // Every anchor within `reach` of `center` is cached (infinite: every anchor is).
-    double reach = -1.0;  // negative: empty
-    int count = 0;
-    std::uint32_t index[kAnchors];
-  };
+  // The anchors nearest a query's last blend point, kept for its next projection (see above).
+  // Starts empty; owned by the caller, one per query, used by one thread at a time.
+  using AnchorCache = NeighborCache<12>;
 
   // `points` and `tree` must outlive the patches; `mls` and `viewpoint` (output normals point
   // toward it; without one their sign is arbitrary but consistent per query) as for MlsProjector.
@@ -119,10 +113,6 @@ class MlsPatches {
   bool Fit(std::size_t i, MlsProjector::Workspace& workspace, Patch& out) const;
   // Anchor i's patch into `out`, fitting it now if no thread has; false when its fit failed.
   bool PatchAt(std::size_t i, Patch& out) const;
-  // The k+1 anchors nearest `near`, sorted by (distance, index), from `cache` when it holds
-  // them (refilled around `near` when it does not). Returns how many were found.
-  std::size_t NearestAnchors(const Vec3& near, AnchorCache* cache, std::uint32_t* index,
-                             double* distance_squared) const;
   Blend BlendAt(const Vec3& query, const Vec3& near, AnchorCache* cache = nullptr) const;
   MlsProjection Finish(const Vec3& query, const Vec3& near, bool seed_far_queries, int blends,
                        AnchorCache* cache) const;

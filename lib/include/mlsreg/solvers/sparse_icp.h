@@ -43,6 +43,17 @@ absl::Status ValidateSparseIcpOptions(const SparseIcpOptions& options);
 // returns beta such that z = beta * h, with beta = 0 when |h| is below the threshold h_a(mu, p).
 double LpShrinkWeight(double h_norm, double mu, double p);
 
+// The same operator for one (mu, p), its threshold computed once: what the ADMM's inner loop
+// applies to every residual (four pow calls per residual instead of eight; the same bits).
+class LpShrink {
+ public:
+  LpShrink(double mu, double p);
+  double operator()(double h_norm) const;
+
+ private:
+  double p_, p_over_mu_, ba_, ha_;
+};
+
 class SparseIcpSolver {
  public:
   explicit SparseIcpSolver(const SparseIcpOptions& options) : options_(options) {}
