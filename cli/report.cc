@@ -128,6 +128,10 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
     if (sc.verification_band > 0.0) {
       out += absl::StrFormat("; verification band %.4g", sc.verification_band);
     }
+    for (const UserLength& length : sc.user_lengths) {
+      out += absl::StrFormat("; given %s %.4g = %.4g d", length.parameter, length.value,
+                             length.value_d);
+    }
     out += "\n";
   }
   if (result.verification) out += FormatVerification(*result.verification) + "\n";
@@ -232,7 +236,12 @@ nlohmann::json ResultJson(std::string_view method, const RegistrationResult& res
                  {"capture_start", result.scales.capture_start},
                  {"capture_end", result.scales.capture_end},
                  {"mls_radius", result.scales.mls_radius},
-                 {"verification_band", result.scales.verification_band}};
+                 {"verification_band", result.scales.verification_band},
+                 {"user_lengths", nlohmann::json::array()}};
+  for (const UserLength& length : result.scales.user_lengths) {
+    j["scales"]["user_lengths"].push_back(
+        {{"parameter", length.parameter}, {"value", length.value}, {"value_d", length.value_d}});
+  }
   if (const std::optional<AutoReport>& a = result.auto_report) {
     nlohmann::json candidates = nlohmann::json::array();
     for (const AutoCandidate& c : a->candidates) {

@@ -204,6 +204,12 @@ void ToProto(const RegistrationResult& r, v1::Result* out) {
   scales->set_capture_end(r.scales.capture_end);
   scales->set_mls_radius(r.scales.mls_radius);
   scales->set_verification_band(r.scales.verification_band);
+  for (const UserLength& length : r.scales.user_lengths) {
+    v1::UserLength* out_length = scales->add_user_lengths();
+    out_length->set_parameter(length.parameter);
+    out_length->set_value(length.value);
+    out_length->set_value_d(length.value_d);
+  }
 }
 
 RegistrationResult FromProto(const v1::Result& p) {
@@ -229,6 +235,9 @@ RegistrationResult FromProto(const v1::Result& p) {
   r.scales = {scales.mean_spacing(), scales.median_spacing(), scales.spacing_p90(),
               scales.extent(),       scales.working_voxel(),  scales.capture_start(),
               scales.capture_end(),  scales.mls_radius(),     scales.verification_band()};
+  for (const v1::UserLength& length : scales.user_lengths()) {
+    r.scales.user_lengths.push_back({length.parameter(), length.value(), length.value_d()});
+  }
   return r;
 }
 

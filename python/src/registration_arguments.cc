@@ -189,12 +189,20 @@ py::dict ResultToPython(const RegistrationResult& result) {
   d["verification"] =
       result.verification ? py::object(ScoreToPython(*result.verification)) : py::none();
   const ScaleReport& sc = result.scales;
-  d["scales"] = py::dict(
+  py::dict scales(
       py::arg("mean_spacing") = sc.mean_spacing, py::arg("median_spacing") = sc.median_spacing,
       py::arg("spacing_p90") = sc.spacing_p90, py::arg("extent") = sc.extent,
       py::arg("working_voxel") = sc.working_voxel, py::arg("capture_start") = sc.capture_start,
       py::arg("capture_end") = sc.capture_end, py::arg("mls_radius") = sc.mls_radius,
       py::arg("verification_band") = sc.verification_band);
+  py::list user_lengths;
+  for (const UserLength& length : sc.user_lengths) {
+    user_lengths.append(py::dict(py::arg("parameter") = length.parameter,
+                                 py::arg("value") = length.value,
+                                 py::arg("value_d") = length.value_d));
+  }
+  scales["user_lengths"] = user_lengths;
+  d["scales"] = scales;
   return d;
 }
 

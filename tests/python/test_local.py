@@ -177,6 +177,11 @@ def test_a_length_in_metres_is_the_same_as_in_units_of_d(bun000, bunny_target, n
     in_m = mlsreg.register(bun000, bunny_target, method="mls-sicp", init=near_start,
                            max_iterations=3, mls_radius_d=f"{5 * d!r}m")
     assert in_m.scales["mls_radius"] == pytest.approx(5 * d, rel=1e-9)
+    assert in_d.scales["user_lengths"] == []
+    [given] = in_m.scales["user_lengths"]
+    assert given["parameter"] == "mls.radius_d"
+    assert given["value"] == pytest.approx(5 * d, rel=1e-12)
+    assert given["value_d"] == pytest.approx(5.0, rel=1e-9)
     assert np.allclose(in_m.transform, in_d.transform, atol=1e-9)
     with pytest.raises(ValueError, match="mls_radius_d: .5 parsecs. is not valid"):
         mlsreg.register(bun000, bunny_target, method="mls-sicp", mls_radius_d="5 parsecs")

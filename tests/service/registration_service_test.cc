@@ -35,6 +35,25 @@ class RegistrationServiceTest : public ::testing::Test {
   Client client_;
 };
 
+// Lengths given in metres cross the wire with their value in d.
+TEST(ResultCodecTest, UserLengthsCrossTheWire) {
+  RegistrationResult result;
+  result.scales.mls_radius = 0.004;
+  result.scales.user_lengths = {{"filter.max_distance_d", 1.0, 38.5}, {"mls.radius_d", 0.004, 0.2}};
+  v1::Result proto;
+  wire::ToProto(result, &proto);
+  ASSERT_EQ(proto.scales().user_lengths_size(), 2);
+  EXPECT_EQ(proto.scales().user_lengths(0).parameter(), "filter.max_distance_d");
+  const RegistrationResult back = wire::FromProto(proto);
+  ASSERT_EQ(back.scales.user_lengths.size(), 2u);
+  for (std::size_t i = 0; i < 2; ++i) {
+    EXPECT_EQ(back.scales.user_lengths[i].parameter, result.scales.user_lengths[i].parameter);
+    EXPECT_EQ(back.scales.user_lengths[i].value, result.scales.user_lengths[i].value);
+    EXPECT_EQ(back.scales.user_lengths[i].value_d, result.scales.user_lengths[i].value_d);
+  }
+  EXPECT_EQ(back.scales.mls_radius, 0.004);
+}
+
 TEST_F(RegistrationServiceTest, ResultIsBitIdenticalToTheLibraryAndProgressStreams) {
   ASSERT_NO_FATAL_FAILURE(StartWith(TestConfig()));
   const Matrix4 initial = PerturbedStart(5.0, 5.0, 7);

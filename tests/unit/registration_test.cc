@@ -258,6 +258,14 @@ TEST(RegistrationTest, LengthsInMetresAreTheSameAsInUnitsOfD) {
   ASSERT_TRUE(a.ok() && b.ok()) << b.status();
   EXPECT_TRUE(b->transform.isApprox(a->transform, 1e-9));
   EXPECT_NEAR(b->scales.mls_radius, 5.0 * d, 1e-12);
+  // The result reports each length given in metres and what it came to in d.
+  EXPECT_TRUE(a->scales.user_lengths.empty());
+  ASSERT_EQ(b->scales.user_lengths.size(), 2u);
+  EXPECT_EQ(b->scales.user_lengths[0].parameter, "filter.max_distance_d");
+  EXPECT_DOUBLE_EQ(b->scales.user_lengths[0].value, 6.0 * d);
+  EXPECT_NEAR(b->scales.user_lengths[0].value_d, 6.0, 1e-12);
+  EXPECT_EQ(b->scales.user_lengths[1].parameter, "mls.radius_d");
+  EXPECT_NEAR(b->scales.user_lengths[1].value_d, 5.0, 1e-12);
 
   // Too large a radius for this target is refused with both units and d.
   in_metres.absolute_lengths = {{"mls.radius_d", 1000.0 * d}};

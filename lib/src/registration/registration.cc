@@ -170,6 +170,9 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
   result->scales.extent = scales.extent;
   result->scales.working_voxel = scales.working_voxel;
   if (reads_mls) result->scales.mls_radius = *resolved.mls.radius_d * d;
+  for (const auto& [name, value] : requested.absolute_lengths) {
+    result->scales.user_lengths.push_back({name, value, value / d});
+  }
   if (options.verify && result->termination != Termination::kCancelled) {
     if (result->auto_report) {
       result->verification = result->auto_report->verification;

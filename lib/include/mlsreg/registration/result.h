@@ -4,6 +4,7 @@
 
 #include <functional>
 #include <optional>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -122,6 +123,13 @@ struct AutoReport {
 
 // The lengths a registration worked at, all chosen from the data (absolute units, those of the
 // clouds): what the user would otherwise have had to pick.
+// A length the caller gave in the clouds' units ("--max-distance 1m"), and what it is in d.
+struct UserLength {
+  std::string parameter;  // the parameter table's name ("filter.max_distance_d")
+  double value = 0.0;     // in the clouds' units
+  double value_d = 0.0;   // in units of the target's d
+};
+
 struct ScaleReport {
   double mean_spacing = 0.0;    // the target's d (paper Eq. 11): the unit of every *_d field
   double median_spacing = 0.0;  // the target's median nearest-neighbour spacing
@@ -131,8 +139,9 @@ struct ScaleReport {
   // Method auto: the capture range of the coarse alignment from the start, first and last.
   double capture_start = 0.0;
   double capture_end = 0.0;
-  double mls_radius = 0.0;         // methods with MLS correspondences
-  double verification_band = 0.0;  // the verification's mean inlier band
+  double mls_radius = 0.0;               // methods with MLS correspondences
+  double verification_band = 0.0;        // the verification's mean inlier band
+  std::vector<UserLength> user_lengths;  // every length given in the clouds' units, by name
 };
 
 struct RegistrationResult {
