@@ -374,8 +374,8 @@ TEST(ThreadsTest, ResultsAreBitIdenticalForAnyThreadCount) {
   const SyntheticPair pair = MakePair(0.8);
   const double d = pair.target->sampling_distance();
   const Matrix4 initial = RandomPerturbation(8.0, 5.0 * d, Vec3::Zero(), 4) * pair.truth;
-  for (Method method :
-       {Method::kMlsSicp, Method::kCpSicp, Method::kStSicp, Method::kCpThenMlsSicp}) {
+  for (Method method : {Method::kAuto, Method::kMlsSicp, Method::kCpSicp, Method::kStSicp,
+                        Method::kCpThenMlsSicp}) {
     SCOPED_TRACE(std::string(MethodName(method)));
     RegistrationOptions options;
     options.method = method;
@@ -392,6 +392,13 @@ TEST(ThreadsTest, ResultsAreBitIdenticalForAnyThreadCount) {
         EXPECT_EQ(many->trace[i].rmse, one->trace[i].rmse);
         EXPECT_EQ(many->trace[i].counts.matched, one->trace[i].counts.matched);
       }
+      // The verdict's evidence too (its passes find the samples' surface in parallel).
+      ASSERT_TRUE(one->verification && many->verification);
+      EXPECT_EQ(many->verification->verdict, one->verification->verdict);
+      EXPECT_EQ(many->verification->inliers, one->verification->inliers);
+      EXPECT_EQ(many->verification->rmse_d, one->verification->rmse_d);
+      EXPECT_EQ(many->verification->settle_displacement, one->verification->settle_displacement);
+      EXPECT_EQ(many->verification->coherent_residual, one->verification->coherent_residual);
     }
   }
   TargetOptions three;

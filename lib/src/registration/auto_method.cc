@@ -301,7 +301,8 @@ class AutoRegistration {
   }
 
   VerificationScore Verify(const Matrix4& transform) const {
-    return VerifyAlignment(target_, source_voxels_, transform, problem_.noise_levels);
+    return VerifyAlignment(target_, source_voxels_, transform, problem_.noise_levels, {},
+                           problem_.threads);
   }
 
   // One report for the global stage (iteration 0): the best candidate's pose.

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "icp_loop.h"
+#include "mlsreg/core/parallel_for.h"
 #include "mlsreg/geometry/neighbor_cache.h"
 #include "mlsreg/solvers/rigid_motion.h"
 
@@ -22,33 +23,50 @@ using Vector6 = Eigen::Matrix<double, 6, 1>;
 class VoxelPlaneStep final : public IcpStep {
  public:
   VoxelPlaneStep(const VoxelCloud& target, const VoxelCloud& source, const CoarseSchedule& schedule,
-                 double d)
+                 double d, int threads)
       : target_(target),
         samples_(source.points),
         capture_(schedule.start_capture),
         final_capture_(schedule.final_capture),
         d_(d),
-        nearest_(source.points.size()) {}
+        threads_(threads),
+        nearest_(source.points.size()),
+        matches_(source.points.size()) {}
 
   bool Match(const RigidTransform& pose, IterationReport& report) override {
     h_.setZero();
     g_.setZero();
     const double capture_squared = capture_ * capture_;
     const double kernel_squared = std::pow(kKernelPerCapture * capture_, 2);
+    // The samples' nearest voxels in parallel; their sums in sample order, so that the step is
+    // the same for any thread count.
+    ParallelFor(
+        samples_.size(), threads_,
+        [&](std::size_t begin, std::size_t end, int) {
+          for (std::size_t i = begin; i < end; ++i) {
+            SampleMatch& m = matches_[i];
+            m.x = pose * samples_[i];
+            const Neighbor nn = CachedNearest(*target_.tree, target_.points, m.x, nearest_[i]);
+            m.kind = nn.distance_squared > capture_squared ? SampleMatch::kFar
+                     : !target_.valid[nn.index]            ? SampleMatch::kInvalid
+                                                           : SampleMatch::kMatched;
+            m.voxel = nn.index;
+          }
+        },
+        256);
     double sum_squared = 0.0;
-    for (std::size_t i = 0; i < samples_.size(); ++i) {
-      const Vec3 x = pose * samples_[i];
-      const Neighbor nn = CachedNearest(*target_.tree, target_.points, x, nearest_[i]);
-      if (nn.distance_squared > capture_squared) {
+    for (const SampleMatch& m : matches_) {
+      if (m.kind == SampleMatch::kFar) {
         ++report.counts.rejected_distance;
         continue;
       }
-      if (!target_.valid[nn.index]) {
+      if (m.kind == SampleMatch::kInvalid) {
         ++report.counts.invalid;
         continue;
       }
-      const Vec3& n = target_.normals[nn.index];
-      const double r = n.dot(x - target_.points[nn.index]);
+      const Vec3& x = m.x;
+      const Vec3& n = target_.normals[m.voxel];
+      const double r = n.dot(x - target_.points[m.voxel]);
       const double k = kernel_squared / (kernel_squared + r * r);
       const double w = k * k;
       Vector6 j;
@@ -79,9 +97,19 @@ class VoxelPlaneStep final : public IcpStep {
   const VoxelCloud& target_;
   const std::vector<Vec3>& samples_;
   double capture_, final_capture_;
+  // One sample's match in this iteration.
+  struct SampleMatch {
+    enum Kind : std::uint8_t { kFar, kInvalid, kMatched };
+    Vec3 x;
+    std::uint32_t voxel = 0;
+    Kind kind = kFar;
+  };
+
   double d_;
+  int threads_;
   // Per sample: the target voxels nearest its last position (an iteration moves it by little).
   std::vector<NeighborCache<8>> nearest_;
+  std::vector<SampleMatch> matches_;
   Matrix6 h_;
   Vector6 g_;
 };
@@ -108,7 +136,7 @@ RegistrationResult AlignVoxelClouds(const RegistrationProblem& problem, const Vo
   RegistrationResult result;
   result.sampling_distance = problem.target->sampling_distance();
   result.num_samples = static_cast<int>(source.size());
-  VoxelPlaneStep step(target, source, schedule, result.sampling_distance);
+  VoxelPlaneStep step(target, source, schedule, result.sampling_distance, problem.threads);
   LoopSettings settings;
   settings.rule = StopRule::kStepSize;
   settings.max_iterations = schedule.max_iterations;

@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "absl/strings/str_format.h"
+#include "mlsreg/core/parallel_for.h"
 #include "mlsreg/geometry/neighbor_cache.h"
 #include "mlsreg/geometry/noise_estimate.h"
 #include "mlsreg/geometry/weighted_covariance.h"
@@ -38,16 +39,24 @@ struct SurfaceHit {
   double local_noise = 0.0;
 };
 
-// The target's surface near `x`: its MLS projection where the patches reach; else the plane
-// through the centroid of its kSurfaceNeighbors samples nearest `x` (noise averages out over
-// them, where the nearest sample alone is biased toward `x`), with their normal when they span a
-// plane and their voxel's otherwise (on a LiDAR's far rings the nearest samples lie along one
-// ring, a line whose plane is anyone's guess).
 // Per sample, what its last pass found near it: the passes below move a sample by little.
 struct SampleCaches {
   NeighborCache<8> voxels;
   MlsPatches::AnchorCache anchors;
 };
+
+// Where each sample landed in the last pass: the voxel coverage test, and the surface hit.
+struct SampleHit {
+  Vec3 x = Vec3::Zero();  // the sample under the pass's pose
+  bool covered = false;   // a target voxel within the coverage distance
+  SurfaceHit hit;         // where it meets the surface (covered samples)
+};
+
+// The target's surface near `x`: its MLS projection where the patches reach; else the plane
+// through the centroid of its kSurfaceNeighbors samples nearest `x` (noise averages out over
+// them, where the nearest sample alone is biased toward `x`), with their normal when they span a
+// plane and their voxel's otherwise (on a LiDAR's far rings the nearest samples lie along one
+// ring, a line whose plane is anyone's guess).
 
 // `voxel`: the target's voxel nearest `x` (the caller's coverage test found it); `anchors`: the
 // sample's SampleCaches::anchors.
@@ -112,6 +121,26 @@ struct Pull {
 // The point-to-plane step (rotation about the centre in units of the lever, then translation);
 // a direction the planes barely constrain (along a road) gets a small ridge instead of an
 // arbitrary step.
+// Every sample under `pose`, in parallel (each with its own caches): the passes below then sum
+// over the samples in their order, so that the verdict is the same for any thread count.
+void HitSamples(const Target& target, std::span<const Vec3> points, const RigidTransform& pose,
+                double coverage, std::span<SampleCaches> caches, std::span<SampleHit> hits,
+                int threads) {
+  const VoxelCloud& voxels = target.voxel_cloud();
+  ParallelFor(
+      points.size(), threads,
+      [&](std::size_t begin, std::size_t end, int) {
+        for (std::size_t i = begin; i < end; ++i) {
+          SampleHit& h = hits[i];
+          h.x = pose * points[i];
+          const Neighbor voxel = CachedNearest(*voxels.tree, voxels.points, h.x, caches[i].voxels);
+          h.covered = voxel.distance_squared <= coverage * coverage;
+          if (h.covered) h.hit = HitSurface(target, h.x, voxel.index, caches[i].anchors);
+        }
+      },
+      64);
+}
+
 Vector6 SolveStep(const Matrix6& normal_matrix, const Vector6& gradient) {
   const double ridge = 1e-6 * normal_matrix.trace();
   return (normal_matrix + ridge * Matrix6::Identity()).ldlt().solve(-gradient);
@@ -201,19 +230,19 @@ constexpr double kSettleTolerancePerNoise = 0.01;
 template <typename BandOf>
 double SettleDisplacement(const Target& target, std::span<const Vec3> points,
                           std::span<const std::uint8_t> state, std::span<SampleCaches> caches,
-                          const RigidTransform& pose, const Vec3& centre, double lever,
-                          double coverage, double tolerance, const BandOf& band_of) {
-  const VoxelCloud& voxels = target.voxel_cloud();
+                          std::span<SampleHit> hits, int threads, const RigidTransform& pose,
+                          const Vec3& centre, double lever, double coverage, double tolerance,
+                          const BandOf& band_of) {
   RigidTransform current = pose;
   for (int step_index = 0; step_index < kSettleSteps; ++step_index) {
     Matrix6 normal_matrix = Matrix6::Zero();
     Vector6 gradient = Vector6::Zero();
     int used = 0;
+    HitSamples(target, points, current, coverage, caches, hits, threads);
     for (std::size_t i = 0; i < points.size(); ++i) {
-      const Vec3 x = current * points[i];
-      const Neighbor voxel = CachedNearest(*voxels.tree, voxels.points, x, caches[i].voxels);
-      if (voxel.distance_squared > coverage * coverage) continue;
-      const SurfaceHit hit = HitSurface(target, x, voxel.index, caches[i].anchors);
+      if (!hits[i].covered) continue;
+      const Vec3& x = hits[i].x;
+      const SurfaceHit& hit = hits[i].hit;
       if (hit.distance > band_of(hit) || !(hit.normal.squaredNorm() > 0.0)) continue;
       Vector6 j;
       j.head<3>() = (x - centre).cross(hit.normal) / lever;
@@ -299,7 +328,7 @@ std::string VerificationScore::WorstDirectionText() const {
 
 VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& samples,
                                   const Matrix4& transform, const NoiseLevels& noise,
-                                  const VerificationOptions& options) {
+                                  const VerificationOptions& options, int threads) {
   const std::vector<Vec3>& points = samples.points;
   const std::vector<Vec3>& normals = samples.normals;
   const double d = target.sampling_distance();
@@ -327,18 +356,19 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   std::vector<std::uint8_t> state(points.size(), 0);              // 1 covered, 2 inlier
   std::vector<Vec3> target_normals(points.size(), Vec3::Zero());  // where each sample lands
   std::vector<SampleCaches> caches(points.size());
+  std::vector<SampleHit> hits(points.size());
   std::vector<Pull> pulls;  // the inliers' residuals across the target's local planes
   pulls.reserve(points.size());
   double sum_squared = 0.0, sum_normalised = 0.0, sum_band = 0.0;
   Vec3 centre = Vec3::Zero();
+  HitSamples(target, points, pose, coverage, caches, hits, threads);
   for (std::size_t i = 0; i < points.size(); ++i) {
-    const Vec3 x = pose * points[i];
-    const Neighbor voxel = CachedNearest(*voxels.tree, voxels.points, x, caches[i].voxels);
-    if (voxel.distance_squared > coverage * coverage) continue;
+    if (!hits[i].covered) continue;
+    const Vec3& x = hits[i].x;
     state[i] = 1;
     ++score.covered;
     centre += x;
-    const SurfaceHit hit = HitSurface(target, x, voxel.index, caches[i].anchors);
+    const SurfaceHit& hit = hits[i].hit;
     target_normals[i] = hit.normal;
     const double local_band = band_of(hit);
     if (hit.distance > local_band) continue;
@@ -374,9 +404,9 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   score.coherent_residual = CoherentResidual(pulls, 2.0 * voxels.voxel, centre, lever, pull_step);
   if (score.inliers > 0) {
     const double noise_sigma = score.inlier_distance / options.band_per_noise;
-    score.settle_displacement =
-        SettleDisplacement(target, points, state, caches, pose, centre, lever, coverage,
-                           std::max(kSettleTolerancePerNoise * noise_sigma, 1e-9 * lever), band_of);
+    score.settle_displacement = SettleDisplacement(
+        target, points, state, caches, hits, threads, pose, centre, lever, coverage,
+        std::max(kSettleTolerancePerNoise * noise_sigma, 1e-9 * lever), band_of);
   }
   // Pass 3: how precisely the agreeing samples fix each direction of motion. The point-to-plane
   // information of a set of samples along a direction (the sum of (J . axis)^2, rotations in
@@ -482,7 +512,7 @@ VerificationScore VerifyPose(const Target& target, const PointCloud& source,
   const VoxelCloud samples =
       BuildVoxelCloud(source.points, target.voxel_cloud().voxel, source.viewpoint, threads);
   return VerifyAlignment(target, samples, transform,
-                         {target.noise().sigma_d * d, source_noise_d * d});
+                         {target.noise().sigma_d * d, source_noise_d * d}, {}, threads);
 }
 
 VerificationScore VerifyPose(const Target& target, const PointCloud& source,

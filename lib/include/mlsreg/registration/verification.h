@@ -148,10 +148,11 @@ struct NoiseLevels {
 // Scores `transform` (source to target) by the source's voxel cloud `samples` (a sample without
 // a normal takes no part in the directional test). A sample's expected residual combines the
 // target's noise where it lands (its estimate, or the local spread there when larger) with the
-// source's noise averaged over the sample's voxel. Thread-safe.
+// source's noise averaged over the sample's voxel. Thread-safe; `threads` find where the samples
+// land, and the sums run in sample order, so the score is the same for any count.
 VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& samples,
                                   const Matrix4& transform, const NoiseLevels& noise,
-                                  const VerificationOptions& options = {});
+                                  const VerificationOptions& options = {}, int threads = 1);
 
 // Verifies `transform` (source to target) as Register verifies a result: the source's noise is
 // estimated and its voxel cloud at the target's working voxel scored.
