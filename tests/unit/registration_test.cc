@@ -408,6 +408,9 @@ TEST(ThreadsTest, ResultsAreBitIdenticalForAnyThreadCount) {
   ASSERT_TRUE(a.ok() && b.ok());
   EXPECT_EQ((*a)->surface().normals, (*b)->surface().normals);
   EXPECT_EQ((*a)->surface().curvature, (*b)->surface().curvature);
+  EXPECT_EQ((*a)->sampling_distance(), (*b)->sampling_distance());
+  EXPECT_EQ((*a)->scales().median_spacing, (*b)->scales().median_spacing);
+  EXPECT_EQ((*a)->scales().spacing_p90, (*b)->scales().spacing_p90);
 }
 
 }  // namespace

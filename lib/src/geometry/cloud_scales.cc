@@ -20,26 +20,15 @@ double Percentile(std::vector<double>& values, double q) {
 
 }  // namespace
 
-CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree, double d) {
+CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree, double d,
+                          int threads) {
   CloudScales scales;
   scales.mean_spacing = d;
   if (points.empty()) return scales;
   const std::vector<std::uint32_t> sample =
       RandomSubsample(points.size(), kSpacingSamples, kSpacingSeed);
-  std::vector<double> spacing;
-  spacing.reserve(sample.size());
-  constexpr std::size_t kK = 4;  // skip exact duplicates, as SamplingDistance does
-  std::uint32_t index[kK];
-  double d2[kK];
-  for (std::uint32_t i : sample) {
-    const std::size_t found = tree.Knn(points[i], kK, index, d2);
-    for (std::size_t j = 0; j < found; ++j) {
-      if (d2[j] > 0.0) {
-        spacing.push_back(std::sqrt(d2[j]));
-        break;
-      }
-    }
-  }
+  std::vector<double> spacing = NearestDistinctDistances(points, tree, sample, threads);
+  std::erase_if(spacing, [](double distance) { return distance < 0.0; });
   scales.median_spacing = Percentile(spacing, 0.5);
   scales.spacing_p90 = Percentile(spacing, 0.9);
 

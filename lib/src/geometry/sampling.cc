@@ -6,6 +6,7 @@
 #include <random>
 #include <unordered_map>
 
+#include "mlsreg/core/parallel_for.h"
 #include "voxel_key.h"
 
 namespace mlsreg {
@@ -23,22 +24,39 @@ namespace {
 __extension__ using Uint128 = unsigned __int128;
 }  // namespace
 
-double SamplingDistance(const std::vector<Vec3>& points, const KdTree& tree) {
-  // Ask for a few neighbours so exact duplicates (distance 0) can be skipped.
-  constexpr std::size_t kK = 4;
-  std::uint32_t indices[kK];
-  double d2[kK];
+std::vector<double> NearestDistinctDistances(const std::vector<Vec3>& points, const KdTree& tree,
+                                             std::span<const std::uint32_t> indices, int threads) {
+  std::vector<double> out(indices.size(), -1.0);
+  ParallelFor(
+      indices.size(), threads,
+      [&](std::size_t begin, std::size_t end, int) {
+        // A few neighbours, so that exact duplicates (distance 0) can be skipped.
+        constexpr std::size_t kK = 4;
+        std::uint32_t found_index[kK];
+        double d2[kK];
+        for (std::size_t k = begin; k < end; ++k) {
+          const std::size_t found = tree.Knn(points[indices[k]], kK, found_index, d2);
+          for (std::size_t j = 0; j < found; ++j) {
+            if (d2[j] > 0.0) {
+              out[k] = std::sqrt(d2[j]);
+              break;
+            }
+          }
+        }
+      },
+      1024);
+  return out;
+}
+
+double SamplingDistance(const std::vector<Vec3>& points, const KdTree& tree, int threads) {
+  std::vector<std::uint32_t> all(points.size());
+  std::iota(all.begin(), all.end(), 0u);
   double sum = 0.0;
   std::size_t counted = 0;
-  for (const Vec3& p : points) {
-    const std::size_t found = tree.Knn(p, kK, indices, d2);
-    for (std::size_t j = 0; j < found; ++j) {
-      if (d2[j] > 0.0) {
-        sum += std::sqrt(d2[j]);
-        ++counted;
-        break;
-      }
-    }
+  for (const double distance : NearestDistinctDistances(points, tree, all, threads)) {
+    if (distance < 0.0) continue;
+    sum += distance;
+    ++counted;
   }
   return counted == 0 ? 0.0 : sum / static_cast<double>(counted);
 }

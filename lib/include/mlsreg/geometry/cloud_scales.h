@@ -28,7 +28,8 @@ struct CloudScales {
 };
 
 // Measures the scales of `points` (indexed by `tree`; mean spacing `d` already known). Spacing
-// percentiles come from a seeded sample of at most 20,000 points.
-CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree, double d);
+// percentiles come from a seeded sample of at most 20,000 points (the same for any `threads`).
+CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree, double d,
+                          int threads = 1);
 
 }  // namespace mlsreg
