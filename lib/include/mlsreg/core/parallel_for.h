@@ -1,12 +1,13 @@
 // ParallelFor: a loop over [0, n) split into contiguous ranges that run at once, one on the
-// calling thread. The body of one index must not depend on another's, so that results are the
-// same for any thread count (every parallel loop in mlsreg is of that kind).
+// calling thread and the others on a process-wide pool of workers (started once, on first use).
+// The body of one index must not depend on another's, so that results are the same for any
+// thread count (every parallel loop in mlsreg is of that kind).
 #pragma once
 
 #include <algorithm>
 #include <cstddef>
+#include <functional>
 #include <thread>
-#include <vector>
 
 namespace mlsreg {
 
@@ -15,8 +16,16 @@ inline int HardwareThreads() {
   return std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
 }
 
+namespace internal {
+// Runs task(k) once for every k in [0, count) on this thread and the pool's workers; returns when
+// all have run. Any thread may call it, at once with others and from inside a task (a nested
+// loop): a caller runs the tasks of its own call that no worker has taken, so it never waits on
+// work that nobody is doing.
+void RunOnPool(std::size_t count, const std::function<void(std::size_t)>& task);
+}  // namespace internal
+
 // Calls body(begin, end, worker) for `threads` (at most one per `min_per_thread` indices, at
-// least 1) contiguous ranges covering [0, n); worker is 0 .. threads-1, range 0 on this thread.
+// least 1) contiguous ranges covering [0, n); worker is 0 .. threads-1, each range once.
 template <typename Body>
 void ParallelFor(std::size_t n, int threads, Body&& body, std::size_t min_per_thread = 64) {
   const std::size_t most = std::max<std::size_t>(1, n / std::max<std::size_t>(1, min_per_thread));
@@ -25,14 +34,9 @@ void ParallelFor(std::size_t n, int threads, Body&& body, std::size_t min_per_th
     body(std::size_t{0}, n, 0);
     return;
   }
-  std::vector<std::thread> helpers;
-  helpers.reserve(count - 1);
   const auto range_begin = [&](std::size_t k) { return n * k / count; };
-  for (std::size_t k = 1; k < count; ++k) {
-    helpers.emplace_back([&, k] { body(range_begin(k), range_begin(k + 1), static_cast<int>(k)); });
-  }
-  body(std::size_t{0}, range_begin(1), 0);
-  for (std::thread& t : helpers) t.join();
+  internal::RunOnPool(
+      count, [&](std::size_t k) { body(range_begin(k), range_begin(k + 1), static_cast<int>(k)); });
 }
 
 }  // namespace mlsreg
