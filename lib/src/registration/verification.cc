@@ -57,7 +57,6 @@ struct SampleHit {
 // them, where the nearest sample alone is biased toward `x`), with their normal when they span a
 // plane and their voxel's otherwise (on a LiDAR's far rings the nearest samples lie along one
 // ring, a line whose plane is anyone's guess).
-
 // `voxel`: the target's voxel nearest `x` (the caller's coverage test found it); `anchors`: the
 // sample's SampleCaches::anchors.
 SurfaceHit HitSurface(const Target& target, const Vec3& x, std::uint32_t voxel,
@@ -107,20 +106,6 @@ SurfaceHit HitSurface(const Target& target, const Vec3& x, std::uint32_t voxel,
   return hit;
 }
 
-// An inlier's residual across the target's plane where it lands.
-struct Pull {
-  Vec3 x;  // the moved sample
-  Vec3 normal;
-  double across;  // signed distance along `normal`
-};
-
-// How much of the inliers' residuals one small rigid motion would remove: the least-squares
-// point-to-plane step from the pose, and the share of the residuals' sum of squares it explains.
-// At a right pose the residuals are noise, and a rigid motion explains about 6 / inliers of them;
-// a pose turned or slid off the truth leaves residuals that one motion explains well.
-// The point-to-plane step (rotation about the centre in units of the lever, then translation);
-// a direction the planes barely constrain (along a road) gets a small ridge instead of an
-// arbitrary step.
 // Every sample under `pose`, in parallel (each with its own caches): the passes below then sum
 // over the samples in their order, so that the verdict is the same for any thread count.
 void HitSamples(const Target& target, std::span<const Vec3> points, const RigidTransform& pose,
@@ -141,6 +126,16 @@ void HitSamples(const Target& target, std::span<const Vec3> points, const RigidT
       64);
 }
 
+// An inlier's residual across the target's plane where it lands.
+struct Pull {
+  Vec3 x;  // the moved sample
+  Vec3 normal;
+  double across;  // signed distance along `normal`
+};
+
+// The point-to-plane step (rotation about the centre in units of the lever, then translation);
+// a direction the planes barely constrain (along a road) gets a small ridge instead of an
+// arbitrary step.
 Vector6 SolveStep(const Matrix6& normal_matrix, const Vector6& gradient) {
   const double ridge = 1e-6 * normal_matrix.trace();
   return (normal_matrix + ridge * Matrix6::Identity()).ldlt().solve(-gradient);
@@ -155,6 +150,10 @@ Vector6 StepJacobian(const Pull& p, const Vec3& centre, double lever) {
   return j;
 }
 
+// How much of the inliers' residuals one small rigid motion would remove: the least-squares
+// point-to-plane step from the pose, and the share of the residuals' sum of squares it explains.
+// At a right pose the residuals are noise, and a rigid motion explains about 6 / inliers of them;
+// a pose turned or slid off the truth leaves residuals that one motion explains well.
 // Returns the step (zero when there is none).
 Vector6 MeasurePull(std::span<const Pull> pulls, const Vec3& centre, double lever,
                     VerificationScore& score) {
