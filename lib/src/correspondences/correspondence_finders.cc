@@ -85,7 +85,7 @@ void MlsCorrespondenceFinder::Find(std::span<const Vec3> queries, std::span<Corr
     status_.assign(queries.size(), ProjectionStatus::kTooFewNeighbors);
   }
   if (anchors_.size() != queries.size() || anchors_of_ != patches_) {
-    anchors_.assign(patches_ ? queries.size() : 0, MlsPatches::AnchorCache{});
+    anchors_.assign(queries.size(), MlsPatches::AnchorCache{});
     anchors_of_ = patches_;
   }
   last_iterations_ = 0;
@@ -132,9 +132,7 @@ bool MlsCorrespondenceFinder::FindRange(std::span<const Vec3> queries,
                       !previous.seeded_from_nearest_sample &&
                       (q - previous.point).squaredNorm() < radius_ * radius_;
     const Vec3 start = q - (q - previous.point).dot(previous.normal) * previous.normal;
-    MlsPatches::AnchorCache unused;
-    MlsPatches::AnchorCache& anchors = patches_ ? anchors_[i] : unused;
-    const MlsProjection projection = ProjectOne(q, warm ? &start : nullptr, workspace, anchors);
+    const MlsProjection projection = ProjectOne(q, warm ? &start : nullptr, workspace, anchors_[i]);
     iterations += projection.iterations;
     Correspondence& c = out[i];
     c.point = projection.point;

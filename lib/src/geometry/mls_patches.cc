@@ -198,10 +198,6 @@ MlsProjection MlsPatches::Finish(const Vec3& query, const Vec3& near, bool seed_
   return blend.projection;
 }
 
-MlsProjection MlsPatches::Project(const Vec3& query, bool seed_far_queries) const {
-  return Finish(query, query, seed_far_queries, 2, nullptr);
-}
-
 MlsProjection MlsPatches::Project(const Vec3& query, bool seed_far_queries,
                                   AnchorCache* cache) const {
   return Finish(query, query, seed_far_queries, 2, cache);

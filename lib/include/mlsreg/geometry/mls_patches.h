@@ -67,15 +67,14 @@ class MlsPatches {
   // The MLS projection of `query`. With `seed_far_queries`, a query farther than r from every
   // anchor is replaced by its nearest target sample (seeded_from_nearest_sample); otherwise it
   // fails with kTooFewNeighbors. Thread-safe; allocation-free once the patches it blends are
-  // fitted.
-  MlsProjection Project(const Vec3& query, bool seed_far_queries) const;
+  // fitted. With `cache` (the query's AnchorCache), the anchors come from it where they can: the
+  // result is the same, bit for bit, with or without it.
+  MlsProjection Project(const Vec3& query, bool seed_far_queries,
+                        AnchorCache* cache = nullptr) const;
   // The same, with the patches chosen around `near`, a point already close to the surface (a
   // warm start: the query on its previous projection's tangent plane). One blend instead of two.
-  // With `cache`, the anchors come from it where they can (the result is the same, bit for bit,
-  // with or without it).
   MlsProjection ProjectNear(const Vec3& query, const Vec3& near, bool seed_far_queries,
                             AnchorCache* cache = nullptr) const;
-  MlsProjection Project(const Vec3& query, bool seed_far_queries, AnchorCache* cache) const;
 
   double radius() const { return mls_.radius; }
   int polynomial_degree() const { return mls_.polynomial_degree; }
