@@ -46,7 +46,7 @@ class JobCall : public StreamingCall<grpc::ServerBidiReactor<Request, Response>>
 
   void ReadNext(const char* what) {
     this->BeginWait(what);
-    this->StartRead(&request_);
+    this->StartUnlessFinished([this] { this->StartRead(&request_); });
   }
 
   void Abandoned() override {
@@ -84,37 +84,33 @@ class JobCall : public StreamingCall<grpc::ServerBidiReactor<Request, Response>>
 
  private:
   // Sends what is next, if nothing is being written. Called by reactions and, through the job's
-  // listener, by the worker.
+  // listener, by the worker. The write starts under the call's lock, so that it never follows
+  // the call's Finish (FinishWith, from a cancel or the watchdog).
   void Pump() {
-    absl::StatusOr<Next> next = Next::kNothing;
+    absl::Status error;
     {
       std::lock_guard<std::mutex> lock(this->mutex_);
       if (this->finished_ || writing_ || !job_) return;
+      absl::StatusOr<Next> next = Next::kWrite;
       if (accepted_pending_) {
         accepted_pending_ = false;
-        next = Next::kWrite;
       } else {
         next = NextFromJob(*job_);
-        if (next.ok() && *next == Next::kResult) this->finished_ = true;
       }
-      if (next.ok() && *next == Next::kWrite) writing_ = true;
-    }
-    if (!next.ok()) {
-      this->FinishWith(next.status());
-      return;
-    }
-    switch (*next) {
-      case Next::kWrite:
+      if (!next.ok()) {
+        error = next.status();
+      } else if (*next == Next::kWrite) {
+        writing_ = true;
         this->BeginWait("the client to read a response");
         this->StartWrite(&out_);
-        break;
-      case Next::kResult:
+      } else if (*next == Next::kResult) {
+        this->finished_ = true;
+        this->EndWait();
         this->StartWriteAndFinish(&out_, grpc::WriteOptions(),
                                   this->scope_.Finish(absl::OkStatus()));
-        break;
-      case Next::kNothing:
-        break;
+      }
     }
+    if (!error.ok()) this->FinishWith(error);
   }
 
   // Guarded by mutex_:

@@ -76,9 +76,22 @@ class StreamingCall : public Reactor, public IdleWatched {
       // The stream's place is free once its client can see the status: the client may open
       // the next one at once (gRPC destroys the call itself later).
       ticket_ = {};
+      EndWait();
+      // Under the lock, so that no read or write starts after it (StartUnlessFinished).
+      this->Finish(scope_.Finish(status));
     }
-    EndWait();
-    this->Finish(scope_.Finish(status));
+    return true;
+  }
+
+  // Starts a read or a write (`start`) unless the call has ended, under the call's lock: nothing
+  // may start after Finish, since gRPC frees the call once Finish and the operations started
+  // before it are done (a late write's completion would reach a freed reactor). gRPC runs no
+  // reaction inline, so holding the lock here cannot deadlock. Returns whether it started.
+  template <class Start>
+  bool StartUnlessFinished(Start start) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (finished_) return false;
+    start();
     return true;
   }
 

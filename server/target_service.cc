@@ -89,7 +89,7 @@ class CreateTargetCall final : public StreamingCall<CreateTargetReactor> {
  private:
   void ReadNext(const char* what) {
     BeginWait(what);
-    StartRead(&request_);
+    StartUnlessFinished([this] { StartRead(&request_); });
   }
 
   void Abandoned() override { cancelled_->store(true); }
