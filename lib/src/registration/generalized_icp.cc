@@ -11,6 +11,7 @@
 
 #include "icp_loop.h"
 #include "method_runners.h"
+#include "mlsreg/core/parallel_for.h"
 #include "mlsreg/geometry/sampling.h"
 #include "mlsreg/solvers/rigid_motion.h"
 
@@ -66,73 +67,97 @@ using Vector6 = Eigen::Matrix<double, 6, 1>;
 
 // G-ICP's match (closest points, covariances) and Gauss-Newton solve. A pair is kept when its
 // distance is within `max_distance`, or, when that is not positive, within the neighbourhood of
-// its target point.
+// its target point. The closest points, covariances and information matrices are found on
+// `threads`; the normal equations are summed in sample order, so the result is the same for any
+// thread count.
 class GicpStep final : public internal::IcpStep {
  public:
   GicpStep(const Target& target, const PointCloud& source, const KdTree& source_tree,
-           std::vector<Vec3> samples, const GicpParams& params, double max_distance)
+           std::vector<Vec3> samples, const GicpParams& params, double max_distance, int threads)
       : target_(target),
         params_(params),
+        threads_(threads),
         samples_(std::move(samples)),
         source_cov_(samples_.size()),
         source_ok_(samples_.size()),
+        pairs_(samples_.size()),
         target_cov_(target.points().size()),
         target_gate_squared_(target.points().size()),
-        target_state_(target.points().size(), -1),
+        target_state_(target.points().size(), kUnknown),
         max_distance_squared_(max_distance > 0.0 ? max_distance * max_distance : 0.0) {
-    for (std::size_t i = 0; i < samples_.size(); ++i) {
-      const std::optional<LocalPlane> plane = PlaneCovariance(
-          source.points, source_tree, samples_[i], params.covariance_neighbors, params.epsilon);
-      source_ok_[i] = plane.has_value();
-      if (plane) source_cov_[i] = plane->covariance;
-    }
+    ParallelFor(samples_.size(), threads_, [&](std::size_t begin, std::size_t end, int) {
+      for (std::size_t i = begin; i < end; ++i) {
+        const std::optional<LocalPlane> plane = PlaneCovariance(
+            source.points, source_tree, samples_[i], params.covariance_neighbors, params.epsilon);
+        source_ok_[i] = plane.has_value();
+        if (plane) source_cov_[i] = plane->covariance;
+      }
+    });
   }
 
   bool Match(const RigidTransform& pose, IterationReport& report) override {
     const std::vector<Vec3>& target_points = target_.points();
-    h_.setZero();
-    g_.setZero();
-    double sum_squared = 0.0;
-    const Eigen::Matrix3d r = pose.linear();
-    for (std::size_t i = 0; i < samples_.size(); ++i) {
-      const Vec3 x = pose * samples_[i];
-      const Neighbor nn = target_.tree().Nearest(x);
-      if (!source_ok_[i]) {
-        ++report.counts.invalid;
+    const std::size_t n = samples_.size();
+    // The closest target point of every sample.
+    ParallelFor(n, threads_, [&](std::size_t begin, std::size_t end, int) {
+      for (std::size_t i = begin; i < end; ++i) {
+        pairs_[i].moved = pose * samples_[i];
+        const Neighbor nn = target_.tree().Nearest(pairs_[i].moved);
+        pairs_[i].target = nn.index;
+        pairs_[i].distance_squared = nn.distance_squared;
+      }
+    });
+    // Target covariances are computed the first time a point is matched (by a pair that the
+    // distance cap keeps), each once.
+    new_targets_.clear();
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::uint32_t t = pairs_[i].target;
+      if (!source_ok_[i] || target_state_[t] != kUnknown) continue;
+      if (max_distance_squared_ > 0.0 && pairs_[i].distance_squared > max_distance_squared_) {
         continue;
       }
-      if (max_distance_squared_ > 0.0 && nn.distance_squared > max_distance_squared_) {
-        ++report.counts.rejected_distance;
-        continue;
-      }
-      std::int8_t& state = target_state_[nn.index];
-      if (state < 0) {  // target covariances are computed the first time a point is matched
+      target_state_[t] = kPending;
+      new_targets_.push_back(t);
+    }
+    ParallelFor(new_targets_.size(), threads_, [&](std::size_t begin, std::size_t end, int) {
+      for (std::size_t k = begin; k < end; ++k) {
+        const std::uint32_t t = new_targets_[k];
         const std::optional<LocalPlane> plane =
-            PlaneCovariance(target_points, target_.tree(), target_points[nn.index],
+            PlaneCovariance(target_points, target_.tree(), target_points[t],
                             params_.covariance_neighbors, params_.epsilon);
-        state = plane ? 1 : 0;
+        target_state_[t] = plane ? kGood : kBad;
         if (plane) {
-          target_cov_[nn.index] = plane->covariance;
-          target_gate_squared_[nn.index] =
+          target_cov_[t] = plane->covariance;
+          target_gate_squared_[t] =
               kGatePerNeighbourhood * kGatePerNeighbourhood * plane->radius_squared;
         }
       }
-      if (state == 0) {
+    });
+    // Each pair's verdict and information matrix.
+    const Eigen::Matrix3d r = pose.linear();
+    ParallelFor(n, threads_, [&](std::size_t begin, std::size_t end, int) {
+      for (std::size_t i = begin; i < end; ++i) Judge(i, r);
+    });
+    // The normal equations, summed in sample order.
+    h_.setZero();
+    g_.setZero();
+    double sum_squared = 0.0;
+    for (const Pair& pair : pairs_) {
+      if (pair.verdict == Verdict::kInvalid) {
         ++report.counts.invalid;
         continue;
       }
-      if (max_distance_squared_ == 0.0 && nn.distance_squared > target_gate_squared_[nn.index]) {
+      if (pair.verdict == Verdict::kTooFar) {
         ++report.counts.rejected_distance;
         continue;
       }
-      const Eigen::Matrix3d combined = target_cov_[nn.index] + r * source_cov_[i] * r.transpose();
-      const Eigen::Matrix3d information = combined.inverse();
-      const Vec3 e = target_points[nn.index] - x;  // residual after x' = exp(delta) x
-      Eigen::Matrix<double, 3, 6> jacobian;        // de/d(omega, v) = [ [x]x, -I ]
+      const Vec3& x = pair.moved;
+      const Vec3 e = target_points[pair.target] - x;  // residual after x' = exp(delta) x
+      Eigen::Matrix<double, 3, 6> jacobian;           // de/d(omega, v) = [ [x]x, -I ]
       jacobian.leftCols<3>() = Skew(x);
       jacobian.rightCols<3>() = -Eigen::Matrix3d::Identity();
-      h_.noalias() += jacobian.transpose() * information * jacobian;
-      g_.noalias() += jacobian.transpose() * information * e;
+      h_.noalias() += jacobian.transpose() * pair.information * jacobian;
+      g_.noalias() += jacobian.transpose() * pair.information * e;
       sum_squared += e.squaredNorm();
       ++report.counts.matched;
     }
@@ -150,14 +175,47 @@ class GicpStep final : public internal::IcpStep {
   std::span<const Vec3> samples() const override { return samples_; }
 
  private:
+  enum TargetState : std::int8_t { kUnknown, kPending, kBad, kGood };
+  enum class Verdict : std::uint8_t { kInvalid, kTooFar, kMatched };
+  // One sample's pair in the current iteration.
+  struct Pair {
+    Vec3 moved;  // the sample under the current pose
+    std::uint32_t target = 0;
+    double distance_squared = 0.0;
+    Verdict verdict = Verdict::kInvalid;
+    Eigen::Matrix3d information;  // the inverse of the pair's combined covariance (matched)
+  };
+
+  // Sample i's verdict and, when matched, its information matrix (r: the pose's rotation).
+  void Judge(std::size_t i, const Eigen::Matrix3d& r) {
+    Pair& pair = pairs_[i];
+    pair.verdict = Verdict::kInvalid;
+    if (!source_ok_[i]) return;
+    if (max_distance_squared_ > 0.0 && pair.distance_squared > max_distance_squared_) {
+      pair.verdict = Verdict::kTooFar;
+      return;
+    }
+    if (target_state_[pair.target] != kGood) return;
+    if (max_distance_squared_ == 0.0 && pair.distance_squared > target_gate_squared_[pair.target]) {
+      pair.verdict = Verdict::kTooFar;
+      return;
+    }
+    const Eigen::Matrix3d combined = target_cov_[pair.target] + r * source_cov_[i] * r.transpose();
+    pair.information = combined.inverse();
+    pair.verdict = Verdict::kMatched;
+  }
+
   const Target& target_;
   GicpParams params_;
+  int threads_;
   std::vector<Vec3> samples_;
   std::vector<Eigen::Matrix3d> source_cov_;
   std::vector<std::uint8_t> source_ok_;
+  std::vector<Pair> pairs_;
   std::vector<Eigen::Matrix3d> target_cov_;
   std::vector<double> target_gate_squared_;  // each target point's neighbourhood radius, squared
-  std::vector<std::int8_t> target_state_;    // -1 unknown, 0 bad, 1 ok
+  std::vector<std::int8_t> target_state_;    // TargetState
+  std::vector<std::uint32_t> new_targets_;   // target points first matched this iteration
   double max_distance_squared_;
   Matrix6 h_;
   Vector6 g_;
@@ -184,7 +242,7 @@ absl::StatusOr<RegistrationResult> RunGicp(const RegistrationProblem& problem,
   if (!problem.source_tree) own_tree.emplace(problem.source->points);
   const KdTree& source_tree = problem.source_tree ? *problem.source_tree : *own_tree;
   GicpStep step(*problem.target, *problem.source, source_tree, std::move(sampled.points),
-                options.gicp, max_distance);
+                options.gicp, max_distance, problem.threads);
   result.timings.preprocessing = Seconds(phase);
 
   LoopSettings settings;
