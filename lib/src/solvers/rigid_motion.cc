@@ -89,7 +89,12 @@ RigidTransform PointToPlaneMotion(std::span<const Vec3> x, std::span<const Vec3>
     row.head<3>() = xc.cross(n[i]);
     row.tail<3>() = n[i];
     const double residual = (x[i] - y[i]).dot(n[i]) - u[i];
-    lhs.selfadjointView<Eigen::Lower>().rankUpdate(row, w[i]);
+    // The lower triangle += w row row^T, column by column: Eigen's rankUpdate arithmetic (the
+    // same bits), inlined (the library call did not inline and showed in profiles).
+    for (int j = 0; j < 6; ++j) {
+      const double scaled = w[i] * row[j];
+      for (int k = j; k < 6; ++k) lhs(k, j) += scaled * row[k];
+    }
     rhs.noalias() -= (w[i] * residual) * row;
     if (tangential_weight > 0.0) {
       // d(R x + t)/d(omega, t) = [-[xc]x  I]; project residual and Jacobian onto the tangent plane.
