@@ -19,7 +19,14 @@ by `mlsreg register --init GT` (kept when within 1 degree and 10 d of the ground
 whose refinement strays is skipped and counted), and the wrong poses are built from that.
 For every pair of a --mismatched set (two different objects or places, any gt), `mlsreg register`
 with defaults runs and its result should not verify.
-Prints one table row per set and kind; --out keeps every run.
+Every pose of a --set also gets its distance from the truth, gt_rmse_d (paper Eq. 10: the RMS
+displacement of the source points, in d), and a second count judges it by the success criterion
+`eval` uses (the paper's: gt_rmse_d < 5): a pose 5 degrees off can be a success (a small view
+turned about its centroid moves its points by 1-3 d), and a slide of exactly 5 d is not.
+By that criterion a false confidence is a verified pose at 5 d or more; a pose under 5 d that is
+refused is a conservative refusal, not a false alarm (only the truth's refusals are those).
+Prints one table row per set and kind; --out keeps every run, and --from CSV prints the table
+of a kept run again.
 """
 import argparse
 import concurrent.futures
@@ -35,6 +42,7 @@ import numpy as np  # noqa: E402
 
 ROTATIONS = [5.0, 10.0, 15.0]
 SLIDES_D = [5.0, 10.0, 20.0]
+SUCCESS_D = 5.0  # the success criterion of `mlsreg eval` (paper: RMSE < 5 d)
 
 
 def read_cloud(path):
@@ -73,6 +81,12 @@ def wrong_poses(gt, source, d, seed):
         t[:3, 3] = s * d * vt[0]
         out.append((f"slide{s:g}", t @ gt))
     return out
+
+
+def ground_truth_rmse_d(source, pose, gt, d):
+    """Paper Eq. 10: the RMS distance between the source under `pose` and under `gt`, in d."""
+    delta = source @ (pose[:3, :3] - gt[:3, :3]).T + (pose[:3, 3] - gt[:3, 3])
+    return float(np.sqrt(np.mean(np.sum(delta * delta, axis=1))) / d)
 
 
 def pairs_of(manifests):
@@ -136,15 +150,55 @@ def refine(exe, pair):
     return pose, angle, np.linalg.norm(delta[:3, 3])
 
 
+def failing(row):
+    """Whether a pose fails the success criterion (a slide of exactly 5 d counts as failing)."""
+    return row["gt_rmse_d"] >= SUCCESS_D * (1 - 1e-9)
+
+
+def print_table(rows):
+    """One markdown row per set and kind of pose."""
+    print("| set | poses | runs | verified | false alarms | false confidences (by kind) | "
+          "verified of those failing 5 d | refused under 5 d |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name in dict.fromkeys(r["set"] for r in rows):
+        for group, kinds in (("truth", ("truth",)), ("turned 5-15 deg", tuple(f"rot{d:g}" for d in ROTATIONS)),
+                             ("slid 5-20 d", tuple(f"slide{s:g}" for s in SLIDES_D)),
+                             ("mismatched (registered)", ("mismatched",))):
+            rs = [r for r in rows if r["set"] == name and r["kind"] in kinds]
+            if not rs:
+                continue
+            v = sum(r["verified"] for r in rs)
+            right = group == "truth"
+            judged = [r for r in rs if r["gt_rmse_d"] != ""]
+            wrong = [r for r in judged if failing(r)]
+            by_criterion = (f"{sum(r['verified'] for r in wrong)} of {len(wrong)}"
+                            if judged and not right else "-")
+            refused = (sum(not r["verified"] for r in judged if not failing(r))
+                       if judged and not right else "-")
+            print(f"| {name} | {group} | {len(rs)} | {v} | {len(rs) - v if right else '-'} | "
+                  f"{'-' if right else v} | {by_criterion} | {refused} |")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--mlsreg", required=True)
+    ap.add_argument("--mlsreg")
+    ap.add_argument("--from", dest="saved", metavar="CSV",
+                    help="print the table of a saved run (--out) instead of running")
     ap.add_argument("--set", action="append", default=[])
     ap.add_argument("--refined-set", action="append", default=[])
     ap.add_argument("--mismatched", action="append", default=[])
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out")
     args = ap.parse_args()
+    if args.saved:
+        with open(args.saved) as f:
+            rows = [{**r, "verified": r["verified"] == "True",
+                     "gt_rmse_d": float(r["gt_rmse_d"]) if r["gt_rmse_d"] else ""}
+                    for r in csv.DictReader(f)]
+        print_table(rows)
+        return
+    if not args.mlsreg:
+        ap.error("--mlsreg is required unless --from is given")
     jobs = []
     specs = [(s, False) for s in args.set] + [(s, True) for s in args.refined_set]
     for spec, refined in specs:
@@ -162,16 +216,17 @@ def main():
                       file=sys.stderr)
                 pair = {**pair, "gt": r[0]}
             for kind, pose in wrong_poses(pair["gt"], source, d, 1000 + k):
-                jobs.append((name, verify, (args.mlsreg, pair, kind, pose)))
+                jobs.append((name, verify, (args.mlsreg, pair, kind, pose),
+                             ground_truth_rmse_d(source, pose, pair["gt"], d)))
     for spec in args.mismatched:
         name, manifests = spec.split("=", 1)
         for pair in pairs_of(manifests.split(",")):
-            jobs.append((name, register, (args.mlsreg, pair)))
+            jobs.append((name, register, (args.mlsreg, pair), ""))
     rows = []
     with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
-        futures = [(name, pool.submit(fn, *a)) for name, fn, a in jobs]
-        for i, (name, f) in enumerate(futures):
-            row = {"set": name, **f.result()}
+        futures = [(name, pool.submit(fn, *a), e) for name, fn, a, e in jobs]
+        for i, (name, f, gt_rmse_d) in enumerate(futures):
+            row = {"set": name, "gt_rmse_d": gt_rmse_d, **f.result()}
             rows.append(row)
             print(f"[{i + 1}/{len(futures)}] {name} {row['id']} {row['kind']}: {row['verdict']}",
                   file=sys.stderr, flush=True)
@@ -180,19 +235,7 @@ def main():
             w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
             w.writeheader()
             w.writerows(rows)
-    print("| set | poses | runs | verified | false alarms | false confidences |")
-    print("|---|---|---|---|---|---|")
-    for name in dict.fromkeys(r["set"] for r in rows):
-        for group, kinds in (("truth", ("truth",)), ("turned 5-15 deg", tuple(f"rot{d:g}" for d in ROTATIONS)),
-                             ("slid 5-20 d", tuple(f"slide{s:g}" for s in SLIDES_D)),
-                             ("mismatched (registered)", ("mismatched",))):
-            rs = [r for r in rows if r["set"] == name and r["kind"] in kinds]
-            if not rs:
-                continue
-            v = sum(r["verified"] for r in rs)
-            right = group == "truth"
-            print(f"| {name} | {group} | {len(rs)} | {v} | {len(rs) - v if right else '-'} | "
-                  f"{'-' if right else v} |")
+    print_table(rows)
 
 
 if __name__ == "__main__":
