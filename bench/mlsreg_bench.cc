@@ -283,6 +283,20 @@ void BM_MlsSicpThreads(benchmark::State& state) {
 }
 BENCHMARK(BM_MlsSicpThreads)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
+// Method auto (the default) on the same problem with 1 or 2 threads (argument): coarse stage,
+// MLS refinement, the plane-to-plane finish over every source point, two verifications.
+void BM_AutoThreads(benchmark::State& state) {
+  const BunnyPair& p = Pair();
+  const RegistrationOptions options;  // auto, the default
+  const Matrix4 initial =
+      RandomPerturbation(10.0, 10.0 * p.target->sampling_distance(), Vec3::Zero(), 1) * p.truth;
+  const ExecutionOptions execution{static_cast<int>(state.range(0))};
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(Register(*p.target, p.source, initial, options, {}, execution));
+  }
+}
+BENCHMARK(BM_AutoThreads)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 // The target build with 1 or 2 threads (argument).
 void BM_TargetBuildThreads(benchmark::State& state) {
   const BunnyPair& p = Pair();
