@@ -117,6 +117,64 @@ TEST(RigidMotionTest, TangentialDampingPinsSlidingAndKeepsTheNormalFit) {
   EXPECT_TRUE(step.translation().isApprox(Vec3(-0.1, 0.0, -0.5), 1e-12));
 }
 
+// The step from its definition: the normal equations of sum w (n.(x' - y) - u)^2 + lambda w
+// |P (x' - y)|^2, P = I - n n^T, built from each correspondence's projected Jacobian.
+RigidTransform ReferencePointToPlaneStep(const std::vector<Vec3>& x, const std::vector<Vec3>& y,
+                                         const std::vector<Vec3>& n, const std::vector<double>& u,
+                                         const std::vector<double>& w, double lambda) {
+  using Matrix6 = Eigen::Matrix<double, 6, 6>;
+  using Vector6 = Eigen::Matrix<double, 6, 1>;
+  Vec3 mean = Vec3::Zero();
+  double total = 0.0;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    mean += w[i] * x[i];
+    total += w[i];
+  }
+  mean /= total;
+  Matrix6 h = Matrix6::Zero();
+  Vector6 g = Vector6::Zero();
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    const Vec3 xc = x[i] - mean;
+    Eigen::Matrix<double, 3, 6> jacobian;  // d(R x + t)/d(omega, t) at the identity
+    jacobian.leftCols<3>() << 0.0, xc.z(), -xc.y(), -xc.z(), 0.0, xc.x(), xc.y(), -xc.x(), 0.0;
+    jacobian.rightCols<3>().setIdentity();
+    const Eigen::Matrix<double, 1, 6> row = n[i].transpose() * jacobian;
+    const Eigen::Matrix3d tangent = Eigen::Matrix3d::Identity() - n[i] * n[i].transpose();
+    const Eigen::Matrix<double, 3, 6> projected = tangent * jacobian;
+    h += w[i] * row.transpose() * row + lambda * w[i] * projected.transpose() * projected;
+    g -= w[i] * ((x[i] - y[i]).dot(n[i]) - u[i]) * row.transpose() +
+         lambda * w[i] * projected.transpose() * (tangent * (x[i] - y[i]));
+  }
+  const Vector6 step = SolveConstrainedStep(h, g);
+  RigidTransform out = RigidTransform::Identity();
+  out.linear() = ExpSo3(step.head<3>());
+  out.translation() = mean + step.tail<3>() - out.linear() * mean;
+  return out;
+}
+
+TEST(RigidMotionTest, TheTangentialTermIsTheStepOfItsDefinition) {
+  // PointToPlaneMotion sums the tangential term through the moments of the points; the step must
+  // be the one its definition gives, for any damping weight and uneven weights.
+  const std::vector<Vec3> x = RandomPoints(300, 21), jitter = RandomPoints(300, 22);
+  std::vector<Vec3> y, n;
+  std::vector<double> u, w;
+  std::mt19937_64 rng(23);
+  std::normal_distribution<double> g;
+  std::uniform_real_distribution<double> weight(0.0, 2.0);
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    y.push_back(KnownMotion() * x[i] + 0.05 * jitter[i]);
+    n.push_back(Vec3(g(rng), g(rng), g(rng)).normalized());
+    u.push_back(0.01 * g(rng));
+    w.push_back(i % 7 == 0 ? 0.0 : weight(rng));
+  }
+  for (double lambda : {0.0, 0.3, 1.0, 2.5}) {
+    SCOPED_TRACE(lambda);
+    const RigidTransform step = PointToPlaneMotion(x, y, n, u, w, lambda);
+    const RigidTransform reference = ReferencePointToPlaneStep(x, y, n, u, w, lambda);
+    EXPECT_LT((step.matrix() - reference.matrix()).cwiseAbs().maxCoeff(), 1e-12);
+  }
+}
+
 TEST(RigidMotionTest, CorrespondencesOnOnePlaneMoveOnlyAlongTheNormal) {
   // Every partner on the plane z = 0 with normal z, points tilted slightly and 0.5 above: the
   // planes constrain the z translation and the tilts about x and y, nothing else. The step must

@@ -80,32 +80,48 @@ RigidTransform PointToPlaneMotion(std::span<const Vec3> x, std::span<const Vec3>
   if (!WeightedCentroid(x, w, mean)) return result;
   using Matrix6 = Eigen::Matrix<double, 6, 6>;
   using Vector6 = Eigen::Matrix<double, 6, 1>;
-  Matrix6 lhs = Matrix6::Zero();
+  // With J = d(R x + t)/d(omega, t) = [-[xc]x  I] and P = I - n n^T, the tangential term adds
+  // lambda w J^T P J to the normal matrix and lambda w J^T P e to the right side (e = x - y).
+  // Since J^T n is the point-to-plane row r = (xc x n, n):
+  //   J^T P J = J^T J - r r^T,   J^T P e = J^T e - r (n . e),   J^T e = (xc x e, e),
+  // and the sum of J^T J needs only the weighted moments of xc (accumulated below):
+  //   sum lambda w J^T J = [ q I - M   [s]x ]    s = sum lambda w xc, M = sum lambda w xc xc^T,
+  //                        [ -[s]x    s0 I  ]    q = trace(M), s0 = sum lambda w,
+  // where s = lambda sum w xc vanishes: xc is taken about the w-weighted centroid.
+  Matrix6 lhs = Matrix6::Zero();  // lower triangle
   Vector6 rhs = Vector6::Zero();
+  double s0 = 0.0;
+  Eigen::Matrix3d moments = Eigen::Matrix3d::Zero();  // M, lower triangle
   for (std::size_t i = 0; i < x.size(); ++i) {
     if (w[i] <= 0.0) continue;
     const Vec3 xc = x[i] - mean;
     Vector6 row;
     row.head<3>() = xc.cross(n[i]);
     row.tail<3>() = n[i];
-    const double residual = (x[i] - y[i]).dot(n[i]) - u[i];
-    // The lower triangle += w row row^T, column by column: Eigen's rankUpdate arithmetic (the
-    // same bits), inlined (the library call did not inline and showed in profiles).
+    const Vec3 e = x[i] - y[i];
+    const double along = e.dot(n[i]);
+    const double tangential = w[i] * tangential_weight;
+    // w r r^T for the plane, minus lambda w r r^T of the tangential term, in one update.
+    const double plane_weight = w[i] - tangential;
     for (int j = 0; j < 6; ++j) {
-      const double scaled = w[i] * row[j];
+      const double scaled = plane_weight * row[j];
       for (int k = j; k < 6; ++k) lhs(k, j) += scaled * row[k];
     }
-    rhs.noalias() -= (w[i] * residual) * row;
-    if (tangential_weight > 0.0) {
-      // d(R x + t)/d(omega, t) = [-[xc]x  I]; project residual and Jacobian onto the tangent plane.
-      const Eigen::Matrix3d tangent = Eigen::Matrix3d::Identity() - n[i] * n[i].transpose();
-      Eigen::Matrix<double, 3, 6> jacobian;
-      jacobian.leftCols<3>() << 0.0, xc.z(), -xc.y(), -xc.z(), 0.0, xc.x(), xc.y(), -xc.x(), 0.0;
-      jacobian.rightCols<3>().setIdentity();
-      const Eigen::Matrix<double, 3, 6> projected = tangent * jacobian;
-      const double weight = w[i] * tangential_weight;
-      lhs.noalias() += weight * (projected.transpose() * projected);
-      rhs.noalias() -= weight * (projected.transpose() * (tangent * (x[i] - y[i])));
+    rhs.noalias() -= (w[i] * (along - u[i]) - tangential * along) * row;
+    if (tangential > 0.0) {
+      s0 += tangential;
+      for (int j = 0; j < 3; ++j) {
+        for (int k = j; k < 3; ++k) moments(k, j) += tangential * xc[k] * xc[j];
+      }
+      rhs.head<3>() -= tangential * xc.cross(e);
+      rhs.tail<3>() -= tangential * e;
+    }
+  }
+  if (s0 > 0.0) {
+    const double q = moments.trace();
+    for (int j = 0; j < 3; ++j) {
+      for (int k = j; k < 3; ++k) lhs(k, j) += (k == j ? q : 0.0) - moments(k, j);
+      lhs(j + 3, j + 3) += s0;
     }
   }
   const Matrix6 full = lhs.selfadjointView<Eigen::Lower>();
