@@ -20,9 +20,9 @@ nlohmann::json MatrixJson(const Matrix4& m) {
 // result's verdict; d: the target's.
 std::string FinishLine(const FinishReport& f, bool verified, double d) {
   if (f.kind == FinishKind::kNone) {
-    // Only a result that did not verify skips an enabled finish.
+    // Only a result that neither verified nor was pulled skips an enabled finish.
     return verified ? "auto finish: none (switched off)\n"
-                    : "auto finish: none (the result did not verify)\n";
+                    : "auto finish: none (the result did not verify, nor is it only pulled)\n";
   }
   const bool clean = f.kind == FinishKind::kPlaneToPlane;
   return absl::StrFormat(

@@ -296,6 +296,19 @@ TEST(AutoMethodTest, NearTheTruthItAlignsTheVoxelCloudsThenFinishesWithoutAGloba
   }
 }
 
+// The finish polishes what it can bring to the data's optimum: a verified result, and a pulled
+// one (right, but a small step short of it); never a pose the data reject otherwise.
+TEST(AutoMethodTest, TheFinishPolishesVerifiedAndPulledResultsOnly) {
+  for (const Verdict verdict :
+       {Verdict::kVerified, Verdict::kTooLittleOverlap, Verdict::kLowAgreement,
+        Verdict::kDiffuseResiduals, Verdict::kDirectionDisagrees, Verdict::kUnconstrained,
+        Verdict::kPulled, Verdict::kCoherentResiduals}) {
+    SCOPED_TRACE(std::string(VerdictName(verdict)));
+    EXPECT_EQ(FinishPolishes(verdict),
+              verdict == Verdict::kVerified || verdict == Verdict::kPulled);
+  }
+}
+
 // A verified start that covers less of the source than accept_fraction asks for is confirmed by
 // the global stage: the start competes with the candidates and stays when none explains more.
 TEST(AutoMethodTest, AStartCoveringTooLittleIsConfirmedGlobally) {

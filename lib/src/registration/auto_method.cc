@@ -9,8 +9,10 @@
 //   3. The best candidates are refined by MLS-SICP in turn until one verifies (the same skip).
 //      A refinement that loses a verified voxel alignment gives way to it. When none verifies,
 //      the start's result is returned, not verified.
-//   4. A verified result is polished over every source point by the finish the clouds' noise
-//      chooses (registration/finish.h): plane-to-plane on clean data, MLS on noisy data.
+//   4. A verified result, or one the data pull a little further (`pulled`), is polished over
+//      every source point by the finish the clouds' noise chooses (registration/finish.h):
+//      plane-to-plane on clean data, MLS on noisy data. The polished pose is kept when it
+//      verifies.
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -252,11 +254,11 @@ class AutoRegistration {
     return result;
   }
 
-  // Stage 4: a verified result polished by the finish the noise chooses, over every source point
-  // (up to kFinishMaxSamples); its pose is kept when it ran on enough pairs and verifies in
-  // turn, so the verdict is always of the pose returned.
+  // Stage 4: a verified (or pulled) result polished by the finish the noise chooses, over every
+  // source point (up to kFinishMaxSamples); its pose is kept when it ran on enough pairs and
+  // verifies in turn, so the verdict is always of the pose returned.
   absl::StatusOr<RegistrationResult> Polish(RegistrationResult result) {
-    if (!params_.finish || !best_score_.verified()) return Finish(std::move(result));
+    if (!params_.finish || !FinishPolishes(best_score_.verdict)) return Finish(std::move(result));
     const Clock::time_point phase = Clock::now();
     FinishReport& finish = report_.finish;
     finish.noise_d = problem_.noise_d;

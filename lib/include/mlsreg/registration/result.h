@@ -101,7 +101,8 @@ struct FinishReport {
   int samples = 0;           // source points it used
   int iterations = 0;
   // Its pose replaced the refinement's: it ran on enough pairs and verified in turn (the result's
-  // verification is then the finished pose's). False: the refinement's verified pose is kept.
+  // verification is then the finished pose's). False: the refinement's pose (verified, or
+  // pulled and still not verified) is kept with its verdict.
   bool kept = false;
   double moved = 0.0;  // RMS displacement of the verification samples from the refined pose
 
