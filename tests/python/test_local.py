@@ -386,3 +386,38 @@ def test_evaluate_measures_against_ground_truth(bun000, bunny_target, gt):
     assert shifted.translation_d == pytest.approx(10.0, rel=1e-9) and not shifted.success
     with pytest.raises(ValueError, match="gt"):
         mlsreg.evaluate(result, np.zeros((4, 4)))
+
+
+def _bumpy_sheet(n, low, high, seed, noise):
+    r = np.random.default_rng(seed)
+    xy = r.uniform(low, high, size=(n, 2))
+    z = 0.15 * np.sin(3 * xy[:, 0]) * np.cos(2 * xy[:, 1]) + 0.1 * np.sin(5 * xy[:, 1] + 1)
+    points = np.column_stack([xy, z])
+    return points + r.normal(scale=noise, size=points.shape)
+
+
+def test_auto_finishes_a_pulled_result_and_keeps_the_finish_only_if_it_verifies():
+    # A noisy bumpy sheet (sigma about 0.9 d), one iteration per stage and one global candidate
+    # aligned by one iteration: the start's refinement ends `pulled` (right, a step short of the
+    # data's optimum) and no candidate verifies. The finish polishes a pulled result as it does a
+    # verified one; in one iteration it does not verify, so the pulled pose comes back with its
+    # verdict, and the finish is reported as not kept.
+    target = _bumpy_sheet(20000, -1.0, 1.0, 1, 0.01)
+    source = _bumpy_sheet(12000, -0.8, 0.6, 2, 0.01)
+    start = np.eye(4)
+    axis = np.array([0.3, 0.2, 1.0]) / np.linalg.norm([0.3, 0.2, 1.0])
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    angle = np.radians(4.0)
+    start[:3, :3] = np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+    start[:3, 3] = [0.04, -0.02, 0.002]
+    result = mlsreg.register(source, target, "auto", init=start, max_iterations=1,
+                             auto_candidates=1, auto_candidate_iterations=1)
+    report = result.auto
+    chosen = report["candidates"][report["chosen"]]
+    assert report["chosen"] == 0
+    assert chosen["score"]["verdict"] == "pulled"
+    assert report["finish"]["kind"] == "mls"  # it ran on the pulled result
+    assert report["finish"]["iterations"] == 1
+    assert report["finish"]["kept"] is False
+    assert result.verification["verdict"] == "pulled"
+    assert np.allclose(np.asarray(chosen["refined"]).reshape(4, 4), result.transform)
