@@ -269,11 +269,11 @@ void BM_VerifyPose(benchmark::State& state) {
 }
 BENCHMARK(BM_VerifyPose)->Unit(benchmark::kMillisecond);
 
-// MLS-SICP on the same problem with 1 or 2 threads (argument): the speed-up of one registration.
-void BM_MlsSicpThreads(benchmark::State& state) {
+// One registration of `method` from the protocol's start with state.range(0) threads.
+void RegisterOnThreads(benchmark::State& state, Method method) {
   const BunnyPair& p = Pair();
-  RegistrationOptions options;  // mls-sicp, defaults
-  options.method = Method::kMlsSicp;
+  RegistrationOptions options;  // defaults
+  options.method = method;
   const Matrix4 initial =
       RandomPerturbation(10.0, 10.0 * p.target->sampling_distance(), Vec3::Zero(), 1) * p.truth;
   const ExecutionOptions execution{static_cast<int>(state.range(0))};
@@ -281,20 +281,14 @@ void BM_MlsSicpThreads(benchmark::State& state) {
     benchmark::DoNotOptimize(Register(*p.target, p.source, initial, options, {}, execution));
   }
 }
+
+// MLS-SICP on the same problem with 1 or 2 threads (argument): the speed-up of one registration.
+void BM_MlsSicpThreads(benchmark::State& state) { RegisterOnThreads(state, Method::kMlsSicp); }
 BENCHMARK(BM_MlsSicpThreads)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-// Method auto (the default) on the same problem with 1 or 2 threads (argument): coarse stage,
-// MLS refinement, the plane-to-plane finish over every source point, two verifications.
-void BM_AutoThreads(benchmark::State& state) {
-  const BunnyPair& p = Pair();
-  const RegistrationOptions options;  // auto, the default
-  const Matrix4 initial =
-      RandomPerturbation(10.0, 10.0 * p.target->sampling_distance(), Vec3::Zero(), 1) * p.truth;
-  const ExecutionOptions execution{static_cast<int>(state.range(0))};
-  for (auto _ : state) {
-    benchmark::DoNotOptimize(Register(*p.target, p.source, initial, options, {}, execution));
-  }
-}
+// Method auto (the default) the same way: coarse stage, MLS refinement, the plane-to-plane finish
+// over every source point, two verifications.
+void BM_AutoThreads(benchmark::State& state) { RegisterOnThreads(state, Method::kAuto); }
 BENCHMARK(BM_AutoThreads)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // The target build with 1 or 2 threads (argument).
