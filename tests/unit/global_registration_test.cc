@@ -241,6 +241,68 @@ TEST(VerificationTest, ARoadWithoutCrossStructureCannotBeVerified) {
   EXPECT_GT(score.inlier_fraction, 0.9);
 }
 
+// A corner of a clean machined part: a floor and a wall, and one small face across them that
+// alone fixes the position along x. Two samplings of it, at the true pose.
+PointCloud MachinedCorner(std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> jitter(-0.004, 0.004);
+  PointCloud part;
+  const double step = 0.02;
+  for (double a = 0.0; a <= 2.0; a += step) {
+    for (double b = 0.0; b <= 2.0; b += step) {
+      part.points.emplace_back(a + jitter(rng), b + jitter(rng), 0.0);                // floor z = 0
+      if (b <= 1.0) part.points.emplace_back(a + jitter(rng), 0.0, b + jitter(rng));  // wall
+    }
+  }
+  for (double b = 0.0; b <= 0.1; b += step) {  // a small face x = 1, facing -x
+    for (double c = 0.0; c <= 0.1; c += step) {
+      part.points.emplace_back(1.0, 0.4 + b + jitter(rng), c + jitter(rng));
+    }
+  }
+  return part;
+}
+
+// Near a sharp edge a sample's normal is fitted across the edge, tens of degrees from the face
+// the target finds there, so its product of normals is arbitrary. Such samples (here one floor
+// sample in six with its normal tilted 85 degrees toward +-x) take no part in the directional
+// test: the verdict and the weakest direction's error are those of the clean samples. Counted,
+// they feign information along x (the error falls by a factor of three) or drown the small
+// face's (a smaller face, or more of them).
+TEST(VerificationTest, NormalsThatDisagreeWithTheTargetsBeyondNoiseTakeNoPartInTheDirections) {
+  auto target = Target::Build(MachinedCorner(1)).value();
+  const VoxelCloud clean =
+      BuildVoxelCloud(MachinedCorner(2).points, target->voxel_cloud().voxel, std::nullopt);
+  VoxelCloud edgy =
+      BuildVoxelCloud(MachinedCorner(2).points, target->voxel_cloud().voxel, std::nullopt);
+  const double tilt = 85.0 * std::numbers::pi / 180.0;
+  int tilted = 0;
+  for (std::size_t i = 0; i < edgy.size(); ++i) {
+    if (edgy.points[i].z() > 0.01 || i % 6 != 0) continue;
+    edgy.normals[i] = Vec3((i % 12 ? 1.0 : -1.0) * std::sin(tilt), 0.0, std::cos(tilt));
+    ++tilted;
+  }
+  ASSERT_GT(tilted, 300);
+  const NoiseLevels noiseless{0.0, 0.0};
+  const VerificationScore expected =
+      VerifyAlignment(*target, clean, Matrix4::Identity(), noiseless);
+  const VerificationScore score = VerifyAlignment(*target, edgy, Matrix4::Identity(), noiseless);
+  EXPECT_TRUE(expected.verified()) << VerdictName(expected.verdict);
+  EXPECT_EQ(score.verdict, expected.verdict) << VerdictName(score.verdict);
+  EXPECT_GT(std::abs(score.worst_direction[3]), 0.9);  // translation along x: the small face
+  // The same to the few tilted samples that had been on an edge already or outside the overlap
+  // (the counterfactual, counting them: 1.0e-4, a third).
+  EXPECT_NEAR(score.worst_direction_error, expected.worst_direction_error,
+              0.01 * expected.worst_direction_error);
+  EXPECT_LE(score.edge_samples, expected.edge_samples + tilted);
+  EXPECT_GE(score.edge_samples, expected.edge_samples + tilted - tilted / 100);
+  EXPECT_LT(score.normal_angle_median_deg, 5.0);
+
+  // Slid along x by more than the band, the small face leaves it: not verified.
+  Matrix4 slid = Matrix4::Identity();
+  slid(0, 3) = 0.05;
+  EXPECT_FALSE(VerifyAlignment(*target, edgy, slid, noiseless).verified());
+}
+
 // Points above a sampled plane are their height away from its MLS surface; far from the samples
 // the distance is the one to the nearest sample.
 TEST(VerificationTest, DistancesToTheMlsSurfaceOfAPlane) {

@@ -269,6 +269,31 @@ double SettleDisplacement(const Target& target, std::span<const Vec3> points,
   return count > 0 ? std::sqrt(sum / count) : 0.0;
 }
 
+// The angle between a sample's normal and the target's where it lands beyond which the sample is
+// taken to sit on a sharp edge (options.feature_angle_per_median times the agreeing samples'
+// median angle, at least options.min_feature_angle_deg), in radians; `median_deg` gets the median.
+double FeatureAngle(std::span<const Vec3> points, std::span<const Vec3> normals,
+                    std::span<const Vec3> target_normals, std::span<const std::uint8_t> state,
+                    const RigidTransform& pose, const VerificationOptions& options,
+                    double& median_deg) {
+  std::vector<double> angles;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (state[i] != 2 || !(normals[i].squaredNorm() > 0.0) ||
+        !(target_normals[i].squaredNorm() > 0.0)) {
+      continue;
+    }
+    const double cosine =
+        std::abs((pose.linear() * normals[i]).normalized().dot(target_normals[i].normalized()));
+    angles.push_back(std::acos(std::min(1.0, cosine)));
+  }
+  const double floor = options.min_feature_angle_deg * M_PI / 180.0;
+  if (angles.empty()) return floor;
+  const auto middle = angles.begin() + static_cast<std::ptrdiff_t>(angles.size() / 2);
+  std::nth_element(angles.begin(), middle, angles.end());
+  median_deg = *middle * 180.0 / M_PI;
+  return std::max(options.feature_angle_per_median * *middle, floor);
+}
+
 // `floor` is the smallest band (one median spacing): a pose the data would move by less than
 // that is never pulled, however significant the pull (clean data pull every imprecise pose).
 // Whether the agreeing samples fix every direction of motion, and if not, whether the covered
@@ -415,6 +440,9 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   // sum (Js . axis)(Jt . axis), whose expectation is the noise-free information. It counts when
   // it stands out of its own noise by min_direction_z (a bare road gives about zero). The six
   // directions are the eigen-directions of the agreeing samples' information.
+  // Samples on sharp edges (their two normals disagree beyond what noise gives) take no part.
+  const double min_normal_cosine = std::cos(FeatureAngle(
+      points, normals, target_normals, state, pose, options, score.normal_angle_median_deg));
   std::vector<Vector6> source_jacobians(points.size(), Vector6::Zero());
   std::vector<Vector6> target_jacobians(points.size(), Vector6::Zero());
   Matrix6 agreeing_information = Matrix6::Zero();
@@ -426,6 +454,10 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
     const Vec3 x = pose * points[i] - centre;
     const Vec3 n = pose.linear() * normals[i];
     const Vec3 m = n.dot(target_normals[i]) < 0.0 ? Vec3(-target_normals[i]) : target_normals[i];
+    if (n.dot(m) < min_normal_cosine) {
+      ++score.edge_samples;
+      continue;
+    }
     source_jacobians[i] << x.cross(n) / lever, n;
     target_jacobians[i] << x.cross(m) / lever, m;
     if (state[i] == 2)

@@ -65,6 +65,14 @@ struct VerificationOptions {
   // (whose noise is independent) summed over the agreeing samples must exceed this many times
   // its own scatter (a z-score: a bare road's noise-tilted normals give about 0 +- 1).
   double min_direction_z = 3.0;
+  // ...counting only samples whose own normal and the target's agree as noise lets them: within
+  // feature_angle_per_median times the agreeing samples' median angle between the two (noise
+  // alone exceeds three medians about once in 500 samples) and never less than
+  // min_feature_angle_deg. A sample beyond that sits on a sharp edge, where each cloud's normal
+  // comes from a different face: its product of normals is arbitrary and would drown the
+  // information of a clean CAD part's faces.
+  double feature_angle_per_median = 3.0;
+  double min_feature_angle_deg = 30.0;
   // The samples reported as constraining the weakest direction: those it moves by at least this
   // share of the top percentile's sensitivity (rotations in units of the samples' RMS radius).
   double direction_sensitivity = 0.5;
@@ -130,6 +138,10 @@ struct VerificationScore {
   int worst_direction_samples = 0;
   double worst_direction_fraction = 0.0;
   Eigen::Matrix<double, 6, 1> worst_direction = Eigen::Matrix<double, 6, 1>::Zero();
+  // The agreeing samples' median angle between their normal and the target's, and the covered
+  // samples left out of the directional test as sitting on sharp edges (see feature_angle_*).
+  double normal_angle_median_deg = 0.0;
+  int edge_samples = 0;
   Verdict verdict = Verdict::kTooLittleOverlap;
 
   bool verified() const { return verdict == Verdict::kVerified; }
