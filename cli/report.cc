@@ -202,7 +202,9 @@ nlohmann::json VerificationJson(const VerificationScore& v) {
           {"worst_direction_fraction", v.worst_direction_fraction},
           {"worst_direction_samples", v.worst_direction_samples},
           {"worst_direction_strength", v.worst_direction_strength},
-          {"worst_direction_error", v.worst_direction_error}};
+          {"worst_direction_error", v.worst_direction_error},
+          {"normal_angle_median_deg", v.normal_angle_median_deg},
+          {"edge_samples", v.edge_samples}};
 }
 
 nlohmann::json ResultJson(std::string_view method, const RegistrationResult& result,

@@ -37,6 +37,8 @@ void ToProto(const VerificationScore& s, v1::VerificationScore* out) {
   out->set_pull_displacement(s.pull_displacement);
   out->set_settle_displacement(s.settle_displacement);
   out->set_coherent_residual(s.coherent_residual);
+  out->set_normal_angle_median_deg(s.normal_angle_median_deg);
+  out->set_edge_samples(s.edge_samples);
   out->set_noise(s.noise);
 }
 
@@ -66,6 +68,8 @@ VerificationScore FromProto(const v1::VerificationScore& p) {
   s.pull_displacement = p.pull_displacement();
   s.settle_displacement = p.settle_displacement();
   s.coherent_residual = p.coherent_residual();
+  s.normal_angle_median_deg = p.normal_angle_median_deg();
+  s.edge_samples = p.edge_samples();
   s.noise = p.noise();
   return s;
 }

@@ -69,7 +69,9 @@ py::dict ScoreToPython(const VerificationScore& s) {
       py::arg("pull_translation") = s.pull_translation,
       py::arg("pull_displacement") = s.pull_displacement,
       py::arg("settle_displacement") = s.settle_displacement,
-      py::arg("coherent_residual") = s.coherent_residual, py::arg("noise") = s.noise);
+      py::arg("coherent_residual") = s.coherent_residual, py::arg("noise") = s.noise,
+      py::arg("normal_angle_median_deg") = s.normal_angle_median_deg,
+      py::arg("edge_samples") = s.edge_samples);
 }
 
 py::dict AutoToPython(const AutoReport& report) {

@@ -126,6 +126,10 @@ def test_register_recovers_the_ground_truth(bun000, bunny_target, gt, near_start
     # most one noise sigma, a third of the band.
     v = result.verification
     assert 0 < v["worst_direction_error"] <= v["inlier_distance"] / 3
+    # The bunny is smooth: its samples' normals agree with the target's to a few degrees, and
+    # hardly any is left out of the directional test as lying on a sharp edge.
+    assert 0 < v["normal_angle_median_deg"] < 10
+    assert 0 <= v["edge_samples"] < 0.05 * v["covered"]
     # The lengths it chose from the data, in the clouds' units (metres for the bunny).
     scales = result.scales
     assert scales["mean_spacing"] == pytest.approx(bunny_target.sampling_distance)
