@@ -449,6 +449,14 @@ TEST(AutoMethodTest, AnotherObjectIsNotVerified) {
   ASSERT_TRUE(result->verification.has_value());
   EXPECT_FALSE(result->verification->verified());
   EXPECT_GT(result->auto_report->candidates.size(), 1u);  // it did look globally
+  // Last, with nothing verified, MLS-SICP alone from the caller's start (no voxel stage): it
+  // does not verify either, so the start's own result is returned.
+  const AutoCandidate& direct = result->auto_report->candidates.back();
+  EXPECT_EQ(direct.origin, CandidateOrigin::kDirect);
+  EXPECT_TRUE(direct.start.isApprox(Matrix4::Identity()));
+  EXPECT_GT(direct.iterations, 0);
+  EXPECT_FALSE(direct.score.verified());
+  EXPECT_EQ(result->auto_report->chosen, 0);
 }
 
 // The finish follows the clouds' measured noise (registration/finish.h): plane-to-plane on clean

@@ -8,7 +8,8 @@
 //      verified, and the start competes with them.
 //   3. The best candidates are refined by MLS-SICP in turn until one verifies (the same skip).
 //      A refinement that loses a verified voxel alignment gives way to it. When none verifies,
-//      the start's result is returned, not verified.
+//      MLS-SICP alone from the caller's start (no voxel stage) is tried; when that does not
+//      verify either, the start's result is returned, not verified.
 //   4. A verified result, or one the data pull a little further (`pulled`), is polished over
 //      every source point by the finish the clouds' noise chooses (registration/finish.h):
 //      plane-to-plane on clean data, MLS on noisy data. The polished pose is kept when it
@@ -176,6 +177,25 @@ class AutoRegistration {
         best = std::move(winner);
       }
       if (score.verified()) break;
+    }
+    // Still nothing verified: MLS-SICP itself from the caller's start, without the voxel stage,
+    // competes last. The voxel alignment approximates the start's basin cheaply but can slide
+    // along a few large planes (a machined part turned 30 degrees), and such parts lack the
+    // features the global stage needs.
+    if (!best_score_.verified()) {
+      const Clock::time_point t = Clock::now();
+      const int index = static_cast<int>(report_.candidates.size());
+      absl::StatusOr<RegistrationResult> direct = Refine(problem_.initial, Stage::kFinal, index, 0);
+      if (!direct.ok()) return direct.status();
+      if (direct->termination == Termination::kCancelled) return Cancelled(std::move(*best));
+      VerificationScore score = Verify(direct->transform);
+      report_.candidates.push_back({CandidateOrigin::kDirect, problem_.initial, direct->transform,
+                                    0, direct->iterations, score, Seconds(t)});
+      if (score.verified()) {
+        report_.chosen = index;
+        best_score_ = std::move(score);
+        best = *std::move(direct);
+      }
     }
     // Nothing verified: the caller's start is the best information left, so its refinement is
     // returned (not verified) rather than a pose from anywhere that merely explains more.

@@ -49,6 +49,7 @@ const EnumNames& CandidateOriginNames() {
   static constexpr EnumValueName kValues[] = {
       {static_cast<int>(CandidateOrigin::kStart), "start", "START"},
       {static_cast<int>(CandidateOrigin::kGlobal), "global", "GLOBAL"},
+      {static_cast<int>(CandidateOrigin::kDirect), "direct", "DIRECT"},
   };
   static constexpr EnumNames kNames{"CandidateOrigin", "CANDIDATE_ORIGIN_", kValues};
   return kNames;

@@ -64,8 +64,11 @@ struct PhaseTimings {
 enum class CandidateOrigin {
   kStart,   // the caller's initial pose
   kGlobal,  // a pose from global feature matching
+  // The caller's initial pose refined by MLS-SICP alone, without the voxel stage: tried last,
+  // when nothing else verified.
+  kDirect,
 };
-std::string_view CandidateOriginName(CandidateOrigin origin);  // "start", "global"
+std::string_view CandidateOriginName(CandidateOrigin origin);  // "start", "global", "direct"
 const EnumNames& CandidateOriginNames();                       // wire enum "CandidateOrigin"
 
 struct AutoCandidate {
