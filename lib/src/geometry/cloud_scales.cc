@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 
 #include "mlsreg/geometry/sampling.h"
 
@@ -20,15 +21,21 @@ double Percentile(std::vector<double>& values, double q) {
 
 }  // namespace
 
-CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree, double d,
-                          int threads) {
+CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree, int threads) {
   CloudScales scales;
-  scales.mean_spacing = d;
   if (points.empty()) return scales;
+  std::vector<std::uint32_t> all(points.size());
+  std::iota(all.begin(), all.end(), 0u);
+  const std::vector<double> nearest = NearestDistinctDistances(points, tree, all, threads);
+  const double d = MeanFoundDistance(nearest);  // = SamplingDistance(points, tree)
+  scales.mean_spacing = d;
   const std::vector<std::uint32_t> sample =
       RandomSubsample(points.size(), kSpacingSamples, kSpacingSeed);
-  std::vector<double> spacing = NearestDistinctDistances(points, tree, sample, threads);
-  std::erase_if(spacing, [](double distance) { return distance < 0.0; });
+  std::vector<double> spacing;
+  spacing.reserve(sample.size());
+  for (const std::uint32_t i : sample) {
+    if (nearest[i] >= 0.0) spacing.push_back(nearest[i]);
+  }
   scales.median_spacing = Percentile(spacing, 0.5);
   scales.spacing_p90 = Percentile(spacing, 0.9);
 

@@ -48,17 +48,21 @@ std::vector<double> NearestDistinctDistances(const std::vector<Vec3>& points, co
   return out;
 }
 
-double SamplingDistance(const std::vector<Vec3>& points, const KdTree& tree, int threads) {
-  std::vector<std::uint32_t> all(points.size());
-  std::iota(all.begin(), all.end(), 0u);
+double MeanFoundDistance(std::span<const double> distances) {
   double sum = 0.0;
   std::size_t counted = 0;
-  for (const double distance : NearestDistinctDistances(points, tree, all, threads)) {
+  for (const double distance : distances) {
     if (distance < 0.0) continue;
     sum += distance;
     ++counted;
   }
   return counted == 0 ? 0.0 : sum / static_cast<double>(counted);
+}
+
+double SamplingDistance(const std::vector<Vec3>& points, const KdTree& tree, int threads) {
+  std::vector<std::uint32_t> all(points.size());
+  std::iota(all.begin(), all.end(), 0u);
+  return MeanFoundDistance(NearestDistinctDistances(points, tree, all, threads));
 }
 
 std::vector<std::uint32_t> RandomSubsample(std::size_t size, std::size_t count,

@@ -60,13 +60,12 @@ absl::StatusOr<std::shared_ptr<Target>> Target::BuildMutable(PointCloud cloud,
   target->options_ = options;
   target->tree_ = std::make_unique<KdTree>(target->cloud_.points);
   if (should_stop && should_stop()) return cancelled();
-  target->sampling_distance_ =
-      SamplingDistance(target->cloud_.points, *target->tree_, options.threads);
+  // One nearest-neighbour pass gives d (the mean spacing) and the spacing percentiles.
+  target->scales_ = MeasureScales(target->cloud_.points, *target->tree_, options.threads);
+  target->sampling_distance_ = target->scales_.mean_spacing;
   if (!(target->sampling_distance_ > 0.0)) {
     return absl::InvalidArgumentError("target has no two distinct points (sampling distance 0)");
   }
-  target->scales_ = MeasureScales(target->cloud_.points, *target->tree_, target->sampling_distance_,
-                                  options.threads);
   target->voxel_cloud_ = BuildVoxelCloud(target->cloud_.points, target->scales_.working_voxel,
                                          target->cloud_.viewpoint, options.threads);
   if (should_stop && should_stop()) return cancelled();

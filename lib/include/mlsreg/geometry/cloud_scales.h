@@ -27,9 +27,10 @@ struct CloudScales {
   double working_voxel = 0.0;  // the coarse resolution: max(1 % extent, 2 median spacings)
 };
 
-// Measures the scales of `points` (indexed by `tree`; mean spacing `d` already known). Spacing
-// percentiles come from a seeded sample of at most 20,000 points (the same for any `threads`).
-CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree, double d,
-                          int threads = 1);
+// Measures the scales of `points` (indexed by `tree`): every point's nearest distinct neighbour
+// once, their mean the mean spacing (the same value as SamplingDistance), the percentiles from
+// a seeded sample of at most 20,000 of them (the same for any `threads`). A cloud with no two
+// distinct points has mean spacing 0.
+CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree, int threads = 1);
 
 }  // namespace mlsreg

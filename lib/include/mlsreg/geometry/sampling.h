@@ -20,6 +20,9 @@ double SamplingDistance(const std::vector<Vec3>& points, const KdTree& tree, int
 // exact duplicate of it, or -1 when its 4 nearest are all duplicates. On `threads` threads.
 std::vector<double> NearestDistinctDistances(const std::vector<Vec3>& points, const KdTree& tree,
                                              std::span<const std::uint32_t> indices, int threads);
+// The mean of the distances NearestDistinctDistances found, in order (its -1 entries skipped);
+// 0 when it found none. SamplingDistance is this over every point.
+double MeanFoundDistance(std::span<const double> distances);
 
 // `count` distinct indices in [0, size), drawn uniformly at random with the given seed and
 // returned in ascending order; all indices when count >= size. Same seed, same answer, on every
