@@ -13,6 +13,7 @@
 #include "mlsreg/geometry/kd_tree.h"
 #include "mlsreg/geometry/neighbor_cache.h"
 #include "mlsreg/geometry/sampling.h"
+#include "mlsreg/geometry/surface_cache.h"
 #include "support/synthetic.h"
 
 namespace mlsreg {
@@ -126,6 +127,38 @@ TEST(SamplingTest, RandomSubsampleIsSeededDistinctAndSorted) {
   for (std::size_t i = 1; i < a.size(); ++i) EXPECT_LT(a[i - 1], a[i]);
   EXPECT_LT(a.back(), 10000u);
   EXPECT_EQ(RandomSubsample(5, 10, 1).size(), 5u);
+}
+
+// The cache answers every request with what AnalyzeSurface gives for it, bit for bit, and
+// analyses each point once: a second request over a subset analyses nothing new, a request over
+// every point only the rest; another radius starts over.
+TEST(SurfaceCacheTest, AnswersAsTheAnalysisAndAnalysesEachPointOnce) {
+  const PointCloud sphere = testing::SampleSphere(3000, 1.0, -0.5, 3);
+  const KdTree tree(sphere.points);
+  const double radius = 4.0 * SamplingDistance(sphere.points, tree);
+  const std::optional<Vec3> viewpoint = Vec3(0.0, 0.0, 5.0);
+  SurfaceCache cache(sphere.points, tree, viewpoint);
+  const auto expect_as_analysed = [&](double r, const std::vector<std::uint32_t>& indices) {
+    const SurfaceProperties want = AnalyzeSurface(sphere.points, tree, r, viewpoint, indices);
+    const SurfaceProperties got = cache.At(r, indices, {}, 2);
+    ASSERT_FALSE(got.stopped);
+    EXPECT_EQ(got.oriented, want.oriented);
+    ASSERT_EQ(got.size(), want.size());
+    for (std::size_t k = 0; k < want.size(); ++k) {
+      EXPECT_EQ(got.normals[k], want.normals[k]) << k;
+      EXPECT_EQ(got.curvature[k], want.curvature[k]) << k;
+      EXPECT_EQ(got.valid[k], want.valid[k]) << k;
+    }
+  };
+  const std::vector<std::uint32_t> some = RandomSubsample(sphere.size(), 500, 7);
+  expect_as_analysed(radius, some);
+  EXPECT_EQ(cache.analysed(), 500u);
+  expect_as_analysed(radius, RandomSubsample(sphere.size(), 200, 7));  // a subset of `some`
+  EXPECT_EQ(cache.analysed(), 500u);
+  expect_as_analysed(radius, {});  // every point
+  EXPECT_EQ(cache.analysed(), sphere.size());
+  expect_as_analysed(2.0 * radius, some);
+  EXPECT_EQ(cache.analysed(), 500u);
 }
 
 TEST(KdTreeTest, MatchesBruteForce) {

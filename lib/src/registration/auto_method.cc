@@ -76,6 +76,9 @@ class AutoRegistration {
       own_source_tree_.emplace(problem.source->points);
       base_.source_tree = &*own_source_tree_;
     }
+    // Every refinement and the finish analyse the source at the same radius: each point once.
+    source_surface_.emplace(problem.source->points, *base_.source_tree, problem.source->viewpoint);
+    base_.source_surface = &*source_surface_;
   }
 
   absl::StatusOr<RegistrationResult> Run() {
@@ -362,6 +365,7 @@ class AutoRegistration {
   RegistrationOptions full_;
   RegistrationProblem base_;
   std::optional<KdTree> own_source_tree_;
+  std::optional<SurfaceCache> source_surface_;
   VoxelCloud source_voxels_;
   VerificationScore best_score_;  // of the result so far
   // The capture range (first, last) of the last coarse alignment, and of the start's.

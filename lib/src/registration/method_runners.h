@@ -11,6 +11,7 @@
 #include "mlsreg/core/point_cloud.h"
 #include "mlsreg/correspondences/correspondence.h"
 #include "mlsreg/geometry/kd_tree.h"
+#include "mlsreg/geometry/surface_cache.h"
 #include "mlsreg/geometry/target.h"
 #include "mlsreg/registration/method.h"
 #include "mlsreg/registration/options.h"
@@ -29,9 +30,12 @@ struct RegistrationProblem {
   internal::Clock::time_point start;
   int iteration_offset = 0;             // iterations of earlier phases (composite methods)
   const KdTree* source_tree = nullptr;  // the source's index when Register built one already
-  int threads = 1;                      // ExecutionOptions::threads
-  double noise_d = 0.0;  // the clouds' estimated noise (the larger), units of d; 0: unknown
-  double noise = 0.0;    // their combined noise sigma, absolute; 0: unknown
+  // The source's surface properties analysed so far, shared by the phases of a composite
+  // method (auto's refinements and finish); null: each phase analyses its own samples.
+  SurfaceCache* source_surface = nullptr;
+  int threads = 1;           // ExecutionOptions::threads
+  double noise_d = 0.0;      // the clouds' estimated noise (the larger), units of d; 0: unknown
+  double noise = 0.0;        // their combined noise sigma, absolute; 0: unknown
   NoiseLevels noise_levels;  // each cloud's, absolute
 };
 

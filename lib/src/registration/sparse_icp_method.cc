@@ -256,9 +256,13 @@ absl::StatusOr<RegistrationResult> RunSparseIcp(const RegistrationProblem& probl
   std::optional<KdTree> own_tree;
   if (!problem.source_tree) own_tree.emplace(problem.source->points);
   const KdTree& source_tree = problem.source_tree ? *problem.source_tree : *own_tree;
-  SurfaceProperties surface = AnalyzeSurface(problem.source->points, source_tree, analysis_radius,
-                                             problem.source->viewpoint, sampled.indices,
-                                             problem.callbacks->should_stop, problem.threads);
+  SurfaceProperties surface =
+      problem.source_surface
+          ? problem.source_surface->At(analysis_radius, sampled.indices,
+                                       problem.callbacks->should_stop, problem.threads)
+          : AnalyzeSurface(problem.source->points, source_tree, analysis_radius,
+                           problem.source->viewpoint, sampled.indices,
+                           problem.callbacks->should_stop, problem.threads);
   result.timings.preprocessing = Seconds(phase);
   const RigidTransform start_pose(Orthonormalize(problem.initial));
   if (surface.stopped) {
