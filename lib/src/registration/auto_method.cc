@@ -224,8 +224,9 @@ class AutoRegistration {
     const VoxelCloud& target_voxels = target_.voxel_cloud();
     CoarseSchedule schedule;
     schedule.final_capture = kFinalCaptureVoxels * target_voxels.voxel;
-    schedule.start_capture = StartCapture(target_voxels, source_voxels_, start,
-                                          schedule.final_capture, target_.scales().extent);
+    schedule.start_capture =
+        StartCapture(target_voxels, source_voxels_, start, schedule.final_capture,
+                     target_.scales().extent, problem_.threads);
     schedule.convergence = kCoarseConvergenceVoxels * target_voxels.voxel;
     schedule.max_iterations = max_iterations;
     last_capture_ = {schedule.start_capture, schedule.final_capture};

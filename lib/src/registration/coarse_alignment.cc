@@ -117,14 +117,18 @@ class VoxelPlaneStep final : public IcpStep {
 }  // namespace
 
 double StartCapture(const VoxelCloud& target, const VoxelCloud& source, const Matrix4& initial,
-                    double final_capture, double target_extent) {
+                    double final_capture, double target_extent, int threads) {
   if (source.points.empty() || target.points.empty()) return final_capture;
   const RigidTransform pose(Orthonormalize(initial));
-  std::vector<double> distances;
-  distances.reserve(source.points.size());
-  for (const Vec3& s : source.points) {
-    distances.push_back(std::sqrt(target.tree->Nearest(pose * s).distance_squared));
-  }
+  std::vector<double> distances(source.points.size());
+  ParallelFor(
+      source.points.size(), threads,
+      [&](std::size_t begin, std::size_t end, int) {
+        for (std::size_t i = begin; i < end; ++i) {
+          distances[i] = std::sqrt(target.tree->Nearest(pose * source.points[i]).distance_squared);
+        }
+      },
+      256);
   const auto k = static_cast<std::ptrdiff_t>(kStartCapturePercentile * (distances.size() - 1));
   std::nth_element(distances.begin(), distances.begin() + k, distances.end());
   return std::clamp(distances[static_cast<std::size_t>(k)], final_capture,

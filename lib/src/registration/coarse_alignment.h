@@ -22,7 +22,7 @@ struct CoarseSchedule {
 // kStartCapturePercentile of the source voxels' distances to the target's voxel cloud, at least
 // `final_capture` and at most half the target's extent.
 double StartCapture(const VoxelCloud& target, const VoxelCloud& source, const Matrix4& initial,
-                    double final_capture, double target_extent);
+                    double final_capture, double target_extent, int threads = 1);
 
 // Aligns `source` (a voxel cloud of the problem's source) to `target` from problem.initial.
 // Iterations are reported through problem.callbacks and appended to the result's trace.

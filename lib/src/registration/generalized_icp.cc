@@ -133,12 +133,24 @@ class GicpStep final : public internal::IcpStep {
         }
       }
     });
-    // Each pair's verdict and information matrix.
+    // Each pair's verdict, information matrix and terms of the normal equations, in parallel.
     const Eigen::Matrix3d r = pose.linear();
     ParallelFor(n, threads_, [&](std::size_t begin, std::size_t end, int) {
-      for (std::size_t i = begin; i < end; ++i) Judge(i, r);
+      for (std::size_t i = begin; i < end; ++i) {
+        Judge(i, r);
+        Pair& pair = pairs_[i];
+        if (pair.verdict != Verdict::kMatched) continue;
+        const Vec3& x = pair.moved;
+        const Vec3 e = target_points[pair.target] - x;  // residual after x' = exp(delta) x
+        Eigen::Matrix<double, 3, 6> jacobian;           // de/d(omega, v) = [ [x]x, -I ]
+        jacobian.leftCols<3>() = Skew(x);
+        jacobian.rightCols<3>() = -Eigen::Matrix3d::Identity();
+        pair.hessian.noalias() = jacobian.transpose() * pair.information * jacobian;
+        pair.gradient.noalias() = jacobian.transpose() * pair.information * e;
+        pair.residual_squared = e.squaredNorm();
+      }
     });
-    // The normal equations, summed in sample order.
+    // The normal equations, summed in sample order: the same for any thread count.
     h_.setZero();
     g_.setZero();
     double sum_squared = 0.0;
@@ -151,14 +163,9 @@ class GicpStep final : public internal::IcpStep {
         ++report.counts.rejected_distance;
         continue;
       }
-      const Vec3& x = pair.moved;
-      const Vec3 e = target_points[pair.target] - x;  // residual after x' = exp(delta) x
-      Eigen::Matrix<double, 3, 6> jacobian;           // de/d(omega, v) = [ [x]x, -I ]
-      jacobian.leftCols<3>() = Skew(x);
-      jacobian.rightCols<3>() = -Eigen::Matrix3d::Identity();
-      h_.noalias() += jacobian.transpose() * pair.information * jacobian;
-      g_.noalias() += jacobian.transpose() * pair.information * e;
-      sum_squared += e.squaredNorm();
+      h_ += pair.hessian;
+      g_ += pair.gradient;
+      sum_squared += pair.residual_squared;
       ++report.counts.matched;
     }
     internal::SetRmse(report, sum_squared, target_.sampling_distance());
@@ -184,6 +191,11 @@ class GicpStep final : public internal::IcpStep {
     double distance_squared = 0.0;
     Verdict verdict = Verdict::kInvalid;
     Eigen::Matrix3d information;  // the inverse of the pair's combined covariance (matched)
+    // Matched: its terms of the normal equations, J^T information J and J^T information e, and
+    // its squared residual.
+    Matrix6 hessian;
+    Vector6 gradient;
+    double residual_squared = 0.0;
   };
 
   // Sample i's verdict and, when matched, its information matrix (r: the pose's rotation).

@@ -188,7 +188,7 @@ Vector6 MeasurePull(std::span<const Pull> pulls, const Vec3& centre, double leve
 // sample and leaves about 0; a surface that is not the target's shape (another object) leaves
 // residuals that neighbours share and no rigid motion removes.
 double CoherentResidual(std::span<const Pull> pulls, double radius, const Vec3& centre,
-                        double lever, const Vector6& step) {
+                        double lever, const Vector6& step, int threads) {
   if (pulls.size() < 12) return 0.0;
   std::vector<Vec3> positions;
   std::vector<double> residuals;
@@ -200,19 +200,32 @@ double CoherentResidual(std::span<const Pull> pulls, double radius, const Vec3& 
   }
   const KdTree tree(positions);
   constexpr int kNeighbours = 7;  // the sample itself and six others
-  std::uint32_t index[kNeighbours];
-  double distance_squared[kNeighbours];
+  // Each sample's products with its neighbours in parallel, summed in sample order after: the
+  // same value for any thread count.
+  std::vector<double> products(pulls.size(), 0.0);
+  std::vector<std::uint8_t> pair_counts(pulls.size(), 0);
+  ParallelFor(
+      pulls.size(), threads,
+      [&](std::size_t begin, std::size_t end, int) {
+        std::uint32_t index[kNeighbours];
+        double distance_squared[kNeighbours];
+        for (std::size_t i = begin; i < end; ++i) {
+          const std::size_t found = tree.Knn(pulls[i].x, kNeighbours, index, distance_squared);
+          for (std::size_t k = 0; k < found; ++k) {
+            const std::uint32_t j = index[k];
+            if (j == i || distance_squared[k] > radius * radius) continue;
+            const double sign = pulls[i].normal.dot(pulls[j].normal) < 0.0 ? -1.0 : 1.0;
+            products[i] += residuals[i] * sign * residuals[j];
+            ++pair_counts[i];
+          }
+        }
+      },
+      256);
   double sum = 0.0;
   long pairs = 0;
   for (std::size_t i = 0; i < pulls.size(); ++i) {
-    const std::size_t found = tree.Knn(pulls[i].x, kNeighbours, index, distance_squared);
-    for (std::size_t k = 0; k < found; ++k) {
-      const std::uint32_t j = index[k];
-      if (j == i || distance_squared[k] > radius * radius) continue;
-      const double sign = pulls[i].normal.dot(pulls[j].normal) < 0.0 ? -1.0 : 1.0;
-      sum += residuals[i] * sign * residuals[j];
-      ++pairs;
-    }
+    sum += products[i];
+    pairs += pair_counts[i];
   }
   return pairs > 0 ? std::sqrt(std::max(0.0, sum / pairs)) : 0.0;
 }
@@ -425,7 +438,8 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   }
   const double lever = score.covered > 0 ? std::sqrt(radius_squared / score.covered) : 1.0;
   const Vector6 pull_step = MeasurePull(pulls, centre, lever, score);
-  score.coherent_residual = CoherentResidual(pulls, 2.0 * voxels.voxel, centre, lever, pull_step);
+  score.coherent_residual =
+      CoherentResidual(pulls, 2.0 * voxels.voxel, centre, lever, pull_step, threads);
   if (score.inliers > 0) {
     const double noise_sigma = score.inlier_distance / options.band_per_noise;
     score.settle_displacement = SettleDisplacement(
