@@ -86,6 +86,17 @@ TEST(FpfhBoundsTest, FeaturesUseAtMostTheCappedNeighbourhoodAndStopWhenAsked) {
   }
   EXPECT_TRUE(
       ComputeFpfh(surface.points, normals.normals, tree, 100.0, [] { return true; }).empty());
+  // On several threads: the same features, bit for bit, and a stop asked from any thread.
+  for (int threads : {2, 3}) {
+    const std::vector<FpfhFeature> threaded =
+        ComputeFpfh(surface.points, normals.normals, tree, 100.0, {}, threads);
+    ASSERT_EQ(threaded.size(), features.size());
+    for (std::size_t i = 0; i < features.size(); ++i) ASSERT_EQ(threaded[i], features[i]) << i;
+    std::atomic<int> asked{0};
+    EXPECT_TRUE(ComputeFpfh(surface.points, normals.normals, tree, 100.0,
+                            [&] { return ++asked > 1; }, threads)
+                    .empty());
+  }
 }
 
 TEST(DepthGridBoundsTest, TheImageIsCappedByThePointCount) {

@@ -63,7 +63,7 @@ std::optional<FeatureCloud> BuildVoxelFeatureCloud(const std::vector<Vec3>& poin
     out.points.push_back(voxels.points[i]);
     out.normals.push_back(voxels.normals[i]);
   }
-  if (!ComputeFeatures(out, should_stop)) return std::nullopt;
+  if (!ComputeFeatures(out, should_stop, threads)) return std::nullopt;
   return out;
 }
 
@@ -96,12 +96,12 @@ std::optional<FeatureCloud> SampleOrientedPoints(
   return out;
 }
 
-bool ComputeFeatures(FeatureCloud& cloud, const StopCheck& should_stop) {
+bool ComputeFeatures(FeatureCloud& cloud, const StopCheck& should_stop, int threads) {
   cloud.features.clear();
   if (cloud.points.empty()) return !(should_stop && should_stop());
   const KdTree sample_tree(cloud.points);
   cloud.features = ComputeFpfh(cloud.points, cloud.normals, sample_tree, cloud.scale.feature_radius,
-                               should_stop);
+                               should_stop, threads);
   return cloud.features.size() == cloud.points.size();
 }
 

@@ -2,8 +2,11 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <numbers>
+
+#include "mlsreg/core/parallel_for.h"
 
 namespace mlsreg {
 namespace {
@@ -54,47 +57,80 @@ void NormalizeBlocks(FpfhFeature& h) {
 
 }  // namespace
 
+namespace {
+
+// Runs body(i, neighbours of i) for every point on `threads` (one neighbourhood buffer per
+// range); false when `should_stop` said stop.
+template <typename Body>
+bool ForEachNeighbourhood(const std::vector<Vec3>& points, const KdTree& tree, double radius,
+                          const StopCheck& should_stop, int threads, Body&& body) {
+  std::atomic<bool> stopped{false};
+  ParallelFor(
+      points.size(), threads,
+      [&](std::size_t begin, std::size_t end, int) {
+        RadiusNeighbors neighbors;
+        StopPoller stop(should_stop);
+        for (std::size_t i = begin; i < end; ++i) {
+          if (stopped.load(std::memory_order_relaxed) || stop.Poll()) {
+            stopped = true;
+            return;
+          }
+          tree.Radius(points[i], radius, neighbors, kMaxFpfhNeighbors);
+          body(i, neighbors);
+        }
+      },
+      64);
+  return !stopped.load();
+}
+
+}  // namespace
+
 std::vector<FpfhFeature> ComputeFpfh(const std::vector<Vec3>& points,
                                      const std::vector<Vec3>& normals, const KdTree& tree,
-                                     double radius, const StopCheck& should_stop) {
+                                     double radius, const StopCheck& should_stop, int threads) {
   const std::size_t n = points.size();
   std::vector<FpfhFeature> spfh(n), fpfh(n);
-  RadiusNeighbors neighbors;
-  StopPoller stop(should_stop);
-  for (std::size_t i = 0; i < n; ++i) {
-    if (stop.Poll()) return {};
-    tree.Radius(points[i], radius, neighbors, kMaxFpfhNeighbors);
-    FpfhFeature& h = spfh[i];
-    h.fill(0.0f);
-    for (const auto& [j, d2] : neighbors) {
-      if (j == i) continue;
-      double f1, f2, f3;
-      if (!PairFeatures(points[i], normals[i], points[j], normals[j], f1, f2, f3)) continue;
-      h[Bin(f1, -std::numbers::pi, std::numbers::pi)] += 1.0f;
-      h[kBins + Bin(f2, -1.0, 1.0)] += 1.0f;
-      h[2 * kBins + Bin(f3, -1.0, 1.0)] += 1.0f;
-    }
-    NormalizeBlocks(h);
-  }
-  for (std::size_t i = 0; i < n; ++i) {
-    if (stop.Poll()) return {};
-    tree.Radius(points[i], radius, neighbors, kMaxFpfhNeighbors);
-    FpfhFeature& h = fpfh[i];
-    h = spfh[i];
-    int k = 0;
-    FpfhFeature weighted{};
-    for (const auto& [j, d2] : neighbors) {
-      if (j == i || d2 <= 0.0) continue;
-      // 1/distance as in Rusu 2009, with distances in units of the radius (scale-free).
-      const float weight = static_cast<float>(radius / std::sqrt(d2));
-      for (int b = 0; b < 33; ++b) weighted[b] += weight * spfh[j][b];
-      ++k;
-    }
-    if (k > 0) {
-      for (int b = 0; b < 33; ++b) h[b] += weighted[b] / static_cast<float>(k);
-    }
-    NormalizeBlocks(h);
-  }
+  // Each point's own histogram (SPFH), then each weighted with its neighbours' (FPFH): every
+  // point's value depends on the points alone, so it is the same for any thread count.
+  const bool spfh_done = ForEachNeighbourhood(
+      points, tree, radius, should_stop, threads,
+      [&](std::size_t i, const RadiusNeighbors& neighbors) {
+        FpfhFeature& h = spfh[i];
+        h.fill(0.0f);
+        for (const auto& [j, d2] : neighbors) {
+          if (j == i) continue;
+          double f1, f2, f3;
+          if (!PairFeatures(points[i], normals[i], points[j], normals[j], f1, f2, f3)) continue;
+          h[Bin(f1, -std::numbers::pi, std::numbers::pi)] += 1.0f;
+          h[kBins + Bin(f2, -1.0, 1.0)] += 1.0f;
+          h[2 * kBins + Bin(f3, -1.0, 1.0)] += 1.0f;
+        }
+        NormalizeBlocks(h);
+      });
+  if (!spfh_done) return {};
+  const bool fpfh_done = ForEachNeighbourhood(points, tree, radius, should_stop, threads,
+                                              [&](std::size_t i, const RadiusNeighbors& neighbors) {
+                                                FpfhFeature& h = fpfh[i];
+                                                h = spfh[i];
+                                                int k = 0;
+                                                FpfhFeature weighted{};
+                                                for (const auto& [j, d2] : neighbors) {
+                                                  if (j == i || d2 <= 0.0) continue;
+                                                  // 1/distance as in Rusu 2009, with distances in
+                                                  // units of the radius (scale-free).
+                                                  const float weight =
+                                                      static_cast<float>(radius / std::sqrt(d2));
+                                                  for (int b = 0; b < 33; ++b)
+                                                    weighted[b] += weight * spfh[j][b];
+                                                  ++k;
+                                                }
+                                                if (k > 0) {
+                                                  for (int b = 0; b < 33; ++b)
+                                                    h[b] += weighted[b] / static_cast<float>(k);
+                                                }
+                                                NormalizeBlocks(h);
+                                              });
+  if (!fpfh_done) return {};
   return fpfh;
 }
 

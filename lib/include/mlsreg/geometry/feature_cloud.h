@@ -50,8 +50,9 @@ std::optional<FeatureCloud> SampleOrientedPoints(
     const std::vector<Vec3>& points, const KdTree& tree, const SurfaceProperties* surface,
     double normal_radius, const std::optional<Vec3>& viewpoint, const FeatureScale& scale,
     const StopCheck& should_stop = {});
-// The second half: the FPFH features of `cloud`'s samples at its scale. False when stopped.
-bool ComputeFeatures(FeatureCloud& cloud, const StopCheck& should_stop = {});
+// The second half: the FPFH features of `cloud`'s samples at its scale, on `threads`. False when
+// stopped.
+bool ComputeFeatures(FeatureCloud& cloud, const StopCheck& should_stop = {}, int threads = 1);
 
 // The features at `scale` of the voxel representatives of `points` (`tree` indexes them). Normals
 // come from `surface` (a per-point analysis of all of `points`) when given, else from an analysis

@@ -20,9 +20,11 @@ inline constexpr std::size_t kMaxFpfhNeighbors = 512;
 // within `radius` among the same points (`tree` indexes them), at most kMaxFpfhNeighbors each.
 // Each 11-bin block sums to 100; a point without neighbours gets all zeros. Memory is two
 // features per point plus one neighbourhood: neighbourhoods are searched again in the second
-// pass instead of being kept. Empty when `should_stop` said stop.
+// pass instead of being kept. Empty when `should_stop` said stop (asked from every thread).
+// `threads` split the points; the features are the same for any count.
 std::vector<FpfhFeature> ComputeFpfh(const std::vector<Vec3>& points,
                                      const std::vector<Vec3>& normals, const KdTree& tree,
-                                     double radius, const StopCheck& should_stop = {});
+                                     double radius, const StopCheck& should_stop = {},
+                                     int threads = 1);
 
 }  // namespace mlsreg
