@@ -2,7 +2,6 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <numbers>
 
@@ -59,28 +58,15 @@ void NormalizeBlocks(FpfhFeature& h) {
 
 namespace {
 
-// Runs body(i, neighbours of i) for every point on `threads` (one neighbourhood buffer per
-// range); false when `should_stop` said stop.
+// body(i, neighbours of i) for every point on `threads`; false when `should_stop` said stop.
 template <typename Body>
 bool ForEachNeighbourhood(const std::vector<Vec3>& points, const KdTree& tree, double radius,
                           const StopCheck& should_stop, int threads, Body&& body) {
-  std::atomic<bool> stopped{false};
-  ParallelFor(
-      points.size(), threads,
-      [&](std::size_t begin, std::size_t end, int) {
-        RadiusNeighbors neighbors;
-        StopPoller stop(should_stop);
-        for (std::size_t i = begin; i < end; ++i) {
-          if (stopped.load(std::memory_order_relaxed) || stop.Poll()) {
-            stopped = true;
-            return;
-          }
-          tree.Radius(points[i], radius, neighbors, kMaxFpfhNeighbors);
-          body(i, neighbors);
-        }
-      },
-      64);
-  return !stopped.load();
+  return ParallelForUntilStopped<RadiusNeighbors>(
+      points.size(), threads, should_stop, [&](std::size_t i, RadiusNeighbors& neighbors) {
+        tree.Radius(points[i], radius, neighbors, kMaxFpfhNeighbors);
+        body(i, neighbors);
+      });
 }
 
 }  // namespace

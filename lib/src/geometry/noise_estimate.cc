@@ -1,7 +1,6 @@
 #include "mlsreg/geometry/noise_estimate.h"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <random>
 
@@ -87,22 +86,13 @@ NoiseEstimate EstimateNoise(const std::vector<Vec3>& points, const KdTree& tree,
   sigmas.reserve(probes.size());
   double radius = options.min_fit_radius_d * d;
   for (int round = 0; round < options.max_rounds; ++round) {
-    std::atomic<bool> stopped{false};
-    ParallelFor(
-        probes.size(), threads,
-        [&](std::size_t begin, std::size_t end, int) {
-          RadiusNeighbors neighbors;
-          StopPoller stop(should_stop, 16);
-          for (std::size_t i = begin; i < end; ++i) {
-            if (stopped.load(std::memory_order_relaxed) || stop.Poll()) {
-              stopped = true;
-              return;
-            }
-            probe_sigmas[i] = ProbeSigma(points, tree, probes[i], radius, neighbors);
-          }
+    const bool finished = ParallelForUntilStopped<RadiusNeighbors>(
+        probes.size(), threads, should_stop,
+        [&](std::size_t i, RadiusNeighbors& neighbors) {
+          probe_sigmas[i] = ProbeSigma(points, tree, probes[i], radius, neighbors);
         },
-        16);
-    if (stopped) return NoiseEstimate{.stopped = true};
+        16, 16);
+    if (!finished) return NoiseEstimate{.stopped = true};
     sigmas.clear();
     for (double sigma : probe_sigmas) {
       if (sigma >= 0.0) sigmas.push_back(sigma);

@@ -1,6 +1,5 @@
 #include "mlsreg/geometry/surface_analysis.h"
 
-#include <atomic>
 #include <cmath>
 
 #include "mlsreg/core/parallel_for.h"
@@ -20,31 +19,23 @@ SurfaceProperties AnalyzeSurface(const std::vector<Vec3>& points, const KdTree& 
   out.valid.assign(n, 0);
   out.oriented = viewpoint.has_value();
 
-  std::atomic<bool> stopped{false};
-  ParallelFor(n, threads, [&](std::size_t begin, std::size_t end, int) {
-    RadiusNeighbors neighbors;
-    StopPoller stop(should_stop);
-    for (std::size_t i = begin; i < end; ++i) {
-      if (stopped.load(std::memory_order_relaxed) || stop.Poll()) {
-        stopped = true;
-        return;
-      }
-      const Vec3& p = points[indices.empty() ? i : indices[i]];
-      tree.Radius(p, radius, neighbors);
-      WeightedCovariance fit(p);
-      for (const auto& [index, d2] : neighbors) {
-        fit.Add(points[index], WendlandWeight(std::sqrt(d2), radius));
-      }
-      LocalFrame frame;
-      if (!fit.Finalize(frame)) continue;
-      Vec3 normal = frame.normal;
-      if (viewpoint && normal.dot(*viewpoint - p) < 0.0) normal = -normal;
-      out.normals[i] = normal;
-      out.curvature[i] = frame.surface_variation;
-      out.valid[i] = 1;
-    }
-  });
-  out.stopped = stopped.load();
+  const bool finished = ParallelForUntilStopped<RadiusNeighbors>(
+      n, threads, should_stop, [&](std::size_t i, RadiusNeighbors& neighbors) {
+        const Vec3& p = points[indices.empty() ? i : indices[i]];
+        tree.Radius(p, radius, neighbors);
+        WeightedCovariance fit(p);
+        for (const auto& [index, d2] : neighbors) {
+          fit.Add(points[index], WendlandWeight(std::sqrt(d2), radius));
+        }
+        LocalFrame frame;
+        if (!fit.Finalize(frame)) return;
+        Vec3 normal = frame.normal;
+        if (viewpoint && normal.dot(*viewpoint - p) < 0.0) normal = -normal;
+        out.normals[i] = normal;
+        out.curvature[i] = frame.surface_variation;
+        out.valid[i] = 1;
+      });
+  out.stopped = !finished;
   return out;
 }
 

@@ -5,9 +5,13 @@
 #pragma once
 
 #include <algorithm>
+#include <atomic>
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <thread>
+
+#include "mlsreg/core/stop_check.h"
 
 namespace mlsreg {
 
@@ -37,6 +41,32 @@ void ParallelFor(std::size_t n, int threads, Body&& body, std::size_t min_per_th
   const auto range_begin = [&](std::size_t k) { return n * k / count; };
   internal::RunOnPool(
       count, [&](std::size_t k) { body(range_begin(k), range_begin(k + 1), static_cast<int>(k)); });
+}
+
+// ParallelFor over the indices one at a time, each range with its own `Scratch` (made once per
+// range: a neighbour buffer, a workspace): body(i, scratch) for every i in [0, n) unless
+// `should_stop` says stop. Each range asks it every `poll_interval` indices (StopPoller) and
+// ends once any range has been told to stop. Returns false when stopped.
+template <typename Scratch, typename Body>
+bool ParallelForUntilStopped(std::size_t n, int threads, const StopCheck& should_stop, Body&& body,
+                             std::uint32_t poll_interval = StopPoller::kDefaultInterval,
+                             std::size_t min_per_thread = 64) {
+  std::atomic<bool> stopped{false};
+  ParallelFor(
+      n, threads,
+      [&](std::size_t begin, std::size_t end, int) {
+        Scratch scratch{};
+        StopPoller stop(should_stop, poll_interval);
+        for (std::size_t i = begin; i < end; ++i) {
+          if (stopped.load(std::memory_order_relaxed) || stop.Poll()) {
+            stopped = true;
+            return;
+          }
+          body(i, scratch);
+        }
+      },
+      min_per_thread);
+  return !stopped.load();
 }
 
 }  // namespace mlsreg

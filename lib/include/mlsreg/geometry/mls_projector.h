@@ -2,7 +2,6 @@
 // exactly as the paper's Algorithm 1 (Dutta, Russig, Gumhold 2019, section 4).
 #pragma once
 
-#include <atomic>
 #include <cstdint>
 #include <optional>
 #include <string_view>
@@ -113,19 +112,12 @@ class MlsProjector {
 template <class PointOf, class Visit>
 bool ProjectEach(const MlsProjector& projector, std::size_t count, const PointOf& point_of,
                  const Visit& visit, int threads, const StopCheck& should_stop) {
-  std::atomic<bool> stopped{false};
-  ParallelFor(count, threads, [&](std::size_t begin, std::size_t end, int) {
-    MlsProjector::Workspace workspace;
-    StopPoller stop(should_stop, 64);
-    for (std::size_t i = begin; i < end; ++i) {
-      if (stopped.load(std::memory_order_relaxed) || stop.Poll()) {
-        stopped = true;
-        return;
-      }
-      visit(i, projector.Project(point_of(i), workspace), workspace);
-    }
-  });
-  return !stopped;
+  return ParallelForUntilStopped<MlsProjector::Workspace>(
+      count, threads, should_stop,
+      [&](std::size_t i, MlsProjector::Workspace& workspace) {
+        visit(i, projector.Project(point_of(i), workspace), workspace);
+      },
+      64);
 }
 
 }  // namespace mlsreg
