@@ -159,6 +159,46 @@ TEST(VerificationTest, TheTruthVerifiesAndAWrongPoseOrAnotherObjectDoesNot) {
   EXPECT_LT(other.inlier_fraction, 0.5);
 }
 
+// The caches one verification leaves for the next (auto keeps them from a pose to its finish)
+// answer exactly as the trees do: poses near and far, in any order, and another sample set (which
+// resets them), score bit for bit as without them.
+TEST(VerificationTest, CachesKeptFromOtherPosesChangeNoScore) {
+  const BunnyPair& bunny = Bunny();
+  const Target& target = *bunny.target;
+  const VoxelCloud samples =
+      BuildVoxelCloud(bunny.source.points, target.voxel_cloud().voxel, bunny.source.viewpoint);
+  const VoxelCloud fewer = BuildVoxelCloud(bunny.source.points, 2.0 * target.voxel_cloud().voxel,
+                                           bunny.source.viewpoint);
+  const NoiseLevels noise{0.1 * target.sampling_distance(), 0.1 * target.sampling_distance()};
+  const Vec3 centre = bunny.truth.topLeftCorner<3, 3>() * samples.points[0];
+  const double d = target.sampling_distance();
+  const std::vector<Matrix4> poses = {
+      RandomPerturbation(0.3, 0.5 * d, centre, 1) * bunny.truth,
+      bunny.truth,
+      RandomPerturbation(20.0, 0.0, centre, 2) * bunny.truth,
+      RandomPerturbation(0.1, 0.2 * d, centre, 3) * bunny.truth,
+  };
+  VerificationCaches caches;
+  for (int pass = 0; pass < 2; ++pass) {
+    for (std::size_t k = 0; k < poses.size(); ++k) {
+      const VoxelCloud& cloud = (pass == 1 && k == 2) ? fewer : samples;
+      const VerificationScore plain = VerifyAlignment(target, cloud, poses[k], noise);
+      const VerificationScore kept =
+          VerifyAlignment(target, cloud, poses[k], noise, {}, 1, &caches);
+      SCOPED_TRACE(::testing::Message() << "pass " << pass << ", pose " << k);
+      EXPECT_EQ(kept.verdict, plain.verdict);
+      EXPECT_EQ(kept.covered, plain.covered);
+      EXPECT_EQ(kept.inliers, plain.inliers);
+      EXPECT_EQ(kept.rmse_d, plain.rmse_d);
+      EXPECT_EQ(kept.settle_displacement, plain.settle_displacement);
+      EXPECT_EQ(kept.coherent_residual, plain.coherent_residual);
+      EXPECT_EQ(kept.worst_direction_error, plain.worst_direction_error);
+      EXPECT_EQ(caches.samples.size(), cloud.size());
+    }
+  }
+  EXPECT_TRUE(VerifyAlignment(target, samples, bunny.truth, noise, {}, 1, &caches).verified());
+}
+
 // Another shape laid on the target within its band: a noisy bumpy sheet against the same sheet
 // with a smooth ripple of about one noise sigma of the band (RMS) added. Most samples agree, the
 // residuals stay concentrated and nothing pulls; but neighbouring samples share the ripple,

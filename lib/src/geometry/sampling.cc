@@ -30,12 +30,16 @@ std::vector<double> NearestDistinctDistances(const std::vector<Vec3>& points, co
   ParallelFor(
       indices.size(), threads,
       [&](std::size_t begin, std::size_t end, int) {
-        // A few neighbours, so that exact duplicates (distance 0) can be skipped.
+        // Two neighbours (the point itself and its nearest), or a few when the second is an
+        // exact duplicate (distance 0), so that duplicates can be skipped.
         constexpr std::size_t kK = 4;
         std::uint32_t found_index[kK];
         double d2[kK];
         for (std::size_t k = begin; k < end; ++k) {
-          const std::size_t found = tree.Knn(points[indices[k]], kK, found_index, d2);
+          std::size_t found = tree.Knn(points[indices[k]], 2, found_index, d2);
+          if (found == 2 && !(d2[1] > 0.0)) {
+            found = tree.Knn(points[indices[k]], kK, found_index, d2);
+          }
           for (std::size_t j = 0; j < found; ++j) {
             if (d2[j] > 0.0) {
               out[k] = std::sqrt(d2[j]);

@@ -328,7 +328,7 @@ class AutoRegistration {
 
   VerificationScore Verify(const Matrix4& transform) const {
     return VerifyAlignment(target_, source_voxels_, transform, problem_.noise_levels, {},
-                           problem_.threads);
+                           problem_.threads, &verification_caches_);
   }
 
   // One report for the global stage (iteration 0): the best candidate's pose.
@@ -368,6 +368,8 @@ class AutoRegistration {
   std::optional<KdTree> own_source_tree_;
   std::optional<SurfaceCache> source_surface_;
   VoxelCloud source_voxels_;
+  // The samples' neighbours, kept from one verification to the next (Verify is sequential).
+  mutable VerificationCaches verification_caches_;
   VerificationScore best_score_;  // of the result so far
   // The capture range (first, last) of the last coarse alignment, and of the start's.
   std::pair<double, double> last_capture_, start_capture_;

@@ -12,6 +12,7 @@
 #include "icp_loop.h"
 #include "method_runners.h"
 #include "mlsreg/core/parallel_for.h"
+#include "mlsreg/geometry/neighbor_cache.h"
 #include "mlsreg/geometry/sampling.h"
 #include "mlsreg/solvers/rigid_motion.h"
 
@@ -81,6 +82,7 @@ class GicpStep final : public internal::IcpStep {
         source_cov_(samples_.size()),
         source_ok_(samples_.size()),
         pairs_(samples_.size()),
+        nearest_caches_(samples_.size()),
         target_cov_(target.points().size()),
         target_gate_squared_(target.points().size()),
         target_state_(target.points().size(), kUnknown),
@@ -98,11 +100,13 @@ class GicpStep final : public internal::IcpStep {
   bool Match(const RigidTransform& pose, IterationReport& report) override {
     const std::vector<Vec3>& target_points = target_.points();
     const std::size_t n = samples_.size();
-    // The closest target point of every sample.
+    // The closest target point of every sample (through its cache: an iteration moves a sample
+    // by a fraction of the spacing, so the points nearest its last position usually answer).
     ParallelFor(n, threads_, [&](std::size_t begin, std::size_t end, int) {
       for (std::size_t i = begin; i < end; ++i) {
         pairs_[i].moved = pose * samples_[i];
-        const Neighbor nn = target_.tree().Nearest(pairs_[i].moved);
+        const Neighbor nn =
+            CachedNearest(target_.tree(), target_points, pairs_[i].moved, nearest_caches_[i]);
         pairs_[i].target = nn.index;
         pairs_[i].distance_squared = nn.distance_squared;
       }
@@ -224,6 +228,7 @@ class GicpStep final : public internal::IcpStep {
   std::vector<Eigen::Matrix3d> source_cov_;
   std::vector<std::uint8_t> source_ok_;
   std::vector<Pair> pairs_;
+  std::vector<NeighborCache<8>> nearest_caches_;  // per sample, the target points near it
   std::vector<Eigen::Matrix3d> target_cov_;
   std::vector<double> target_gate_squared_;  // each target point's neighbourhood radius, squared
   std::vector<std::int8_t> target_state_;    // TargetState

@@ -39,11 +39,7 @@ struct SurfaceHit {
   double local_noise = 0.0;
 };
 
-// Per sample, what its last pass found near it: the passes below move a sample by little.
-struct SampleCaches {
-  NeighborCache<8> voxels;
-  MlsPatches::AnchorCache anchors;
-};
+using SampleCaches = VerificationCaches::Sample;
 
 // Where each sample landed in the last pass: the voxel coverage test, and the surface hit.
 struct SampleHit {
@@ -57,10 +53,10 @@ struct SampleHit {
 // them, where the nearest sample alone is biased toward `x`), with their normal when they span a
 // plane and their voxel's otherwise (on a LiDAR's far rings the nearest samples lie along one
 // ring, a line whose plane is anyone's guess).
-// `voxel`: the target's voxel nearest `x` (the caller's coverage test found it); `anchors`: the
-// sample's SampleCaches::anchors.
+// `voxel`: the target's voxel nearest `x` (the caller's coverage test found it); `caches`: the
+// sample's.
 SurfaceHit HitSurface(const Target& target, const Vec3& x, std::uint32_t voxel,
-                      MlsPatches::AnchorCache& anchors) {
+                      SampleCaches& caches) {
   const VoxelCloud& voxels = target.voxel_cloud();
   SurfaceHit hit;
   // Only a flat voxel's spread is noise; elsewhere it is mostly shape.
@@ -68,7 +64,7 @@ SurfaceHit HitSurface(const Target& target, const Vec3& x, std::uint32_t voxel,
     hit.local_noise = voxels.spread[voxel];
   }
   if (const MlsPatches* patches = target.mls_patches(); patches != nullptr) {
-    const MlsProjection p = patches->Project(x, /*seed_far_queries=*/false, &anchors);
+    const MlsProjection p = patches->Project(x, /*seed_far_queries=*/false, &caches.anchors);
     if (p.status == ProjectionStatus::kOk) {
       hit.normal = p.normal;
       hit.across = (x - p.point).dot(p.normal);
@@ -78,7 +74,8 @@ SurfaceHit HitSurface(const Target& target, const Vec3& x, std::uint32_t voxel,
   }
   std::uint32_t index[kSurfaceNeighbors];
   double d2[kSurfaceNeighbors];
-  const std::size_t found = target.tree().Knn(x, kSurfaceNeighbors, index, d2);
+  const std::size_t found =
+      CachedKnn(target.tree(), target.points(), x, kSurfaceNeighbors, &caches.samples, index, d2);
   WeightedCovariance covariance(x);
   for (std::size_t j = 0; j < found; ++j) covariance.Add(target.points()[index[j]], 1.0);
   LocalFrame frame;
@@ -120,7 +117,7 @@ void HitSamples(const Target& target, std::span<const Vec3> points, const RigidT
           h.x = pose * points[i];
           const Neighbor voxel = CachedNearest(*voxels.tree, voxels.points, h.x, caches[i].voxels);
           h.covered = voxel.distance_squared <= coverage * coverage;
-          if (h.covered) h.hit = HitSurface(target, h.x, voxel.index, caches[i].anchors);
+          if (h.covered) h.hit = HitSurface(target, h.x, voxel.index, caches[i]);
         }
       },
       64);
@@ -365,7 +362,8 @@ std::string VerificationScore::WorstDirectionText() const {
 
 VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& samples,
                                   const Matrix4& transform, const NoiseLevels& noise,
-                                  const VerificationOptions& options, int threads) {
+                                  const VerificationOptions& options, int threads,
+                                  VerificationCaches* kept) {
   const std::vector<Vec3>& points = samples.points;
   const std::vector<Vec3>& normals = samples.normals;
   const double d = target.sampling_distance();
@@ -392,7 +390,13 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   // Pass 1: coverage and agreement, and the covered samples' centre.
   std::vector<std::uint8_t> state(points.size(), 0);              // 1 covered, 2 inlier
   std::vector<Vec3> target_normals(points.size(), Vec3::Zero());  // where each sample lands
-  std::vector<SampleCaches> caches(points.size());
+  VerificationCaches own;
+  VerificationCaches& cached = kept != nullptr ? *kept : own;
+  if (cached.target != &target || cached.samples.size() != points.size()) {
+    cached.target = &target;
+    cached.samples.assign(points.size(), SampleCaches{});
+  }
+  const std::span<SampleCaches> caches(cached.samples);
   std::vector<SampleHit> hits(points.size());
   std::vector<Pull> pulls;  // the inliers' residuals across the target's local planes
   pulls.reserve(points.size());

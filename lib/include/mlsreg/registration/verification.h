@@ -36,6 +36,8 @@
 
 #include "mlsreg/core/enum_names.h"
 #include "mlsreg/core/transform.h"
+#include "mlsreg/geometry/mls_patches.h"
+#include "mlsreg/geometry/neighbor_cache.h"
 #include "mlsreg/geometry/target.h"
 
 namespace mlsreg {
@@ -157,6 +159,21 @@ struct NoiseLevels {
   double source = 0.0;
 };
 
+// What one verification leaves for the next of the same samples on the same target: each
+// sample's nearest target voxels, MLS anchors and target points (NeighborCaches, which answer
+// exactly as the trees do). A pose and its refinement land the samples close to where they
+// landed before, so the second verification finds most neighbours without searching. The score
+// is the same with or without it. One per sample set; one verification at a time.
+struct VerificationCaches {
+  struct Sample {
+    NeighborCache<8> voxels;
+    MlsPatches::AnchorCache anchors;
+    NeighborCache<16> samples;  // where the patches do not reach: the local plane's samples
+  };
+  const Target* target = nullptr;  // whose caches they are
+  std::vector<Sample> samples;
+};
+
 // Scores `transform` (source to target) by the source's voxel cloud `samples` (a sample without
 // a normal takes no part in the directional test). A sample's expected residual combines the
 // target's noise where it lands (its estimate, or the local spread there when larger) with the
@@ -164,7 +181,8 @@ struct NoiseLevels {
 // land, and the sums run in sample order, so the score is the same for any count.
 VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& samples,
                                   const Matrix4& transform, const NoiseLevels& noise,
-                                  const VerificationOptions& options = {}, int threads = 1);
+                                  const VerificationOptions& options = {}, int threads = 1,
+                                  VerificationCaches* caches = nullptr);
 
 // Verifies `transform` (source to target) as Register verifies a result: the source's noise is
 // estimated and its voxel cloud at the target's working voxel scored.
