@@ -201,8 +201,11 @@ class AutoRegistration {
       }
     }
     // Nothing verified: the caller's start is the best information left, so its refinement is
-    // returned (not verified) rather than a pose from anywhere that merely explains more.
-    if (!best_score_.verified() && report_.chosen != 0) {
+    // returned (not verified) rather than a pose from anywhere that merely explains more; unless
+    // the best result is one small motion from a pose the data fix and the start's is not, or the
+    // start's refinement has left the target altogether (UnverifiedPrefersTheStart).
+    if (!best_score_.verified() && report_.chosen != 0 &&
+        UnverifiedPrefersTheStart(report_.candidates[0].score, best_score_)) {
       report_.chosen = 0;
       best_score_ = report_.candidates[0].score;
       best = std::move(start);
@@ -235,6 +238,20 @@ class AutoRegistration {
     return result;
   }
 
+  // When nothing verified, whether the start's refinement (score `start`) is returned rather
+  // than the best other result (`best`, the most inliers). Not when `best` is `pulled` and the
+  // start's is not: a pulled pose passed every test before the pull (overlap, agreement, noise-like
+  // residuals), one small rigid motion from a pose the data fix, and the finish polishes it (an
+  // open road from an odometry prior: a global candidate 0.2 m from the truth, pulled, against a
+  // start refinement that slid off the road). Nor when the start's refinement covers too little
+  // of the target while `best` covers enough: it no longer carries the caller's information.
+  static bool UnverifiedPrefersTheStart(const VerificationScore& start,
+                                        const VerificationScore& best) {
+    if (best.verdict == Verdict::kPulled && start.verdict != Verdict::kPulled) return false;
+    return !(start.verdict == Verdict::kTooLittleOverlap &&
+             best.verdict != Verdict::kTooLittleOverlap);
+  }
+
   // With a plane-to-plane finish to come, a voxel alignment that verifies goes straight to it:
   // the finish's Gauss-Newton steps over every source point converge from there to the same
   // pose (tuning split, sigma 0: the same median error, 14 % less time). Not before an MLS
@@ -245,8 +262,9 @@ class AutoRegistration {
   }
 
   // `aligned` (a voxel alignment) refined by MLS-SICP, and the refined pose's verification. A
-  // refinement that does not verify where the voxel alignment did (`voxel_score`, when known)
-  // gives way to it: the finish polishes that one instead.
+  // refinement that does not verify where the voxel alignment did (`voxel_score`, when known), or
+  // that explains less than it (BetterScore: an open road, where Sparse ICP's steps from a pose
+  // 0.2 m off slid off the target), gives way to it: the finish polishes that one instead.
   absl::StatusOr<VerificationScore> RefineKeepingVerified(
       RegistrationResult& aligned, Stage stage, int candidate,
       const std::optional<VerificationScore>& voxel_score) {
@@ -259,7 +277,7 @@ class AutoRegistration {
     VerificationScore score = Verify(aligned.transform);
     if (score.verified() || !params_.finish) return score;
     const VerificationScore voxel = voxel_score ? *voxel_score : Verify(voxel_pose);
-    if (!voxel.verified()) return score;
+    if (!voxel.verified() && !BetterScore(voxel, score)) return score;
     aligned.transform = voxel_pose;
     return voxel;
   }
