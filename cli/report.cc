@@ -109,7 +109,8 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
       out += absl::StrFormat(
           "  candidate %zu %-6s  %-19s overlap on surface %5.1f %%  RMSE %7.3f d  %3d its  "
           "%6.3f s%s\n",
-          k, CandidateOriginName(c.origin), VerdictName(c.score.verdict),
+          k, CandidateOriginName(c.origin),
+          c.in_start_basin ? std::string_view("start's basin") : VerdictName(c.score.verdict),
           100.0 * c.score.inlier_fraction, c.score.rmse_d, c.iterations, c.seconds,
           static_cast<int>(k) == a->chosen ? "  <- chosen" : "");
     }
@@ -253,7 +254,8 @@ nlohmann::json ResultJson(std::string_view method, const RegistrationResult& res
                             {"feature_inliers", c.feature_inliers},
                             {"iterations", c.iterations},
                             {"score", VerificationJson(c.score)},
-                            {"seconds", c.seconds}});
+                            {"seconds", c.seconds},
+                            {"in_start_basin", c.in_start_basin}});
     }
     j["auto"] = {{"verified", a->verified},
                  {"chosen", a->chosen},

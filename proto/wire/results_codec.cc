@@ -87,6 +87,7 @@ void AutoReportToProto(const AutoReport& r, v1::AutoReport* out) {
     p->set_iterations(c.iterations);
     ToProto(c.score, p->mutable_score());
     p->set_seconds(c.seconds);
+    p->set_in_start_basin(c.in_start_basin);
   }
   out->set_chosen(r.chosen);
   out->set_verified(r.verified);
@@ -121,6 +122,7 @@ AutoReport AutoReportFromProto(const v1::AutoReport& p) {
     a.iterations = c.iterations();
     a.score = FromProto(c.score());
     a.seconds = c.seconds();
+    a.in_start_basin = c.in_start_basin();
     r.candidates.push_back(a);
   }
   r.chosen = p.chosen();

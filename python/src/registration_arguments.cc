@@ -77,11 +77,12 @@ py::dict ScoreToPython(const VerificationScore& s) {
 py::dict AutoToPython(const AutoReport& report) {
   py::list candidates;
   for (const AutoCandidate& c : report.candidates) {
-    candidates.append(py::dict(
-        py::arg("origin") = std::string(CandidateOriginName(c.origin)),
-        py::arg("start") = Matrix4(c.start), py::arg("refined") = Matrix4(c.refined),
-        py::arg("feature_inliers") = c.feature_inliers, py::arg("iterations") = c.iterations,
-        py::arg("score") = ScoreToPython(c.score), py::arg("seconds") = c.seconds));
+    candidates.append(
+        py::dict(py::arg("origin") = std::string(CandidateOriginName(c.origin)),
+                 py::arg("start") = Matrix4(c.start), py::arg("refined") = Matrix4(c.refined),
+                 py::arg("feature_inliers") = c.feature_inliers,
+                 py::arg("iterations") = c.iterations, py::arg("score") = ScoreToPython(c.score),
+                 py::arg("seconds") = c.seconds, py::arg("in_start_basin") = c.in_start_basin));
   }
   const AutoStageTimings& t = report.timings;
   const FinishReport& f = report.finish;

@@ -419,6 +419,7 @@ def test_auto_finishes_a_pulled_result_and_keeps_the_finish_only_if_it_verifies(
     report = result.auto
     chosen = report["candidates"][report["chosen"]]
     assert report["chosen"] == 0
+    assert chosen["in_start_basin"] is False
     assert chosen["score"]["verdict"] == "pulled"
     assert report["finish"]["kind"] == "mls"  # it ran on the pulled result
     assert report["finish"]["iterations"] == 1

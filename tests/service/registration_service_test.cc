@@ -196,6 +196,10 @@ TEST_F(RegistrationServiceTest, AutoFromAHalfTurnStreamsItsStagesAndReportsItsCa
   ASSERT_EQ(report.candidates_size(), static_cast<int>(local->auto_report->candidates.size()));
   EXPECT_EQ(report.candidates(0).origin(), v1::CANDIDATE_ORIGIN_START);
   EXPECT_EQ(report.candidates(report.chosen()).origin(), v1::CANDIDATE_ORIGIN_GLOBAL);
+  for (int k = 0; k < report.candidates_size(); ++k) {
+    EXPECT_EQ(report.candidates(k).in_start_basin(),
+              local->auto_report->candidates[k].in_start_basin);
+  }
   EXPECT_DOUBLE_EQ(report.verification().inlier_fraction(),
                    local->auto_report->verification.inlier_fraction);
   EXPECT_GT(report.global_seconds(), 0.0);

@@ -427,6 +427,20 @@ TEST(AutoMethodTest, AStartCoveringTooLittleIsConfirmedGlobally) {
   EXPECT_EQ(report.chosen, 0);  // no candidate explains more by 1 %
   EXPECT_FALSE(report.early_exit);
   EXPECT_TRUE(report.verified);
+  // Candidates whose alignment reached the start's pose stop there (within the final capture
+  // range of two working voxels) and are not verified again: they carry the start's score.
+  int in_basin = 0, stopped_early = 0;
+  for (std::size_t k = 1; k < report.candidates.size(); ++k) {
+    const AutoCandidate& c = report.candidates[k];
+    if (!c.in_start_basin) continue;
+    ++in_basin;
+    stopped_early += c.iterations < options.automatic.candidate_iterations;
+    EXPECT_EQ(c.score.inliers, report.candidates[0].score.inliers);
+    EXPECT_LE(RmsDistanceBetween(bunny.source.points, c.refined, report.candidates[0].refined),
+              2.0 * bunny.target->voxel_cloud().voxel);
+  }
+  EXPECT_GT(in_basin, 0);
+  EXPECT_GT(stopped_early, 0);
   EXPECT_LT(
       EvaluatePose(bunny.source.points, result->transform, bunny.truth, result->sampling_distance)
           .rmse_d,
@@ -456,6 +470,9 @@ TEST(AutoMethodTest, FromAHalfTurnItFindsTheTruthAndSaysWhichCandidateWon) {
   EXPECT_FALSE(report.candidates[0].score.verified());  // local alignment alone fails here
   ASSERT_GT(report.chosen, 0);
   EXPECT_EQ(report.candidates[report.chosen].origin, CandidateOrigin::kGlobal);
+  for (const AutoCandidate& c : report.candidates) {
+    EXPECT_FALSE(c.in_start_basin);  // the start did not verify: every candidate is its own
+  }
   EXPECT_TRUE(report.verification.verified());
   EXPECT_GT(report.verification.inlier_fraction, 0.6);
   EXPECT_GT(report.feature_matches, 50);

@@ -148,6 +148,7 @@ RegistrationResult AlignVoxelClouds(const RegistrationProblem& problem, const Vo
   settings.convergence = schedule.convergence;
   settings.coarse_convergence = schedule.convergence;
   settings.iteration_offset = problem.iteration_offset;
+  settings.reached = schedule.reached;
   RunIcpLoop(step, RigidTransform(Orthonormalize(problem.initial)), settings, *problem.callbacks,
              problem.start, result);
   result.timings.total = Seconds(problem.start);

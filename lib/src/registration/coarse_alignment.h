@@ -6,8 +6,11 @@
 // KISS-ICP ties its kernel to its threshold), so moving objects and non-overlap pull little.
 #pragma once
 
+#include <functional>
+
 #include "method_runners.h"
 #include "mlsreg/geometry/voxel_cloud.h"
+#include "mlsreg/solvers/rigid_motion.h"
 
 namespace mlsreg::internal {
 
@@ -16,6 +19,8 @@ struct CoarseSchedule {
   double final_capture = 0.0;  // the last
   double convergence = 0.0;    // a level ends when no sample moves more than this
   int max_iterations = 60;     // over all levels
+  // Ends the alignment early, converged, once its pose satisfies this (LoopSettings::reached).
+  std::function<bool(const RigidTransform&)> reached;
 };
 
 // Samples of the start pose: the capture range a coarse alignment from `initial` starts with,

@@ -138,6 +138,11 @@ void RunIcpLoop(IcpStep& step, RigidTransform pose, const LoopSettings& settings
       result.termination = Termination::kTooFewCorrespondences;
       break;
     }
+    if (settings.reached && settings.reached(pose)) {
+      result.termination = Termination::kConverged;
+      result.converged = true;
+      break;
+    }
     if (converged && step.coarse()) {
       step.Refine();  // the finer correspondences get their own run to convergence
       recent_poses.clear();

@@ -3,6 +3,7 @@
 // match and solve); composite methods (ST-SICP, CP-SICP+MLS-SICP) run the loop more than once.
 #pragma once
 
+#include <functional>
 #include <optional>
 #include <span>
 
@@ -53,6 +54,9 @@ struct LoopSettings {
   // count as stalled (RMS over the samples); 0 disables; not in a coarse phase.
   double stall_standard_errors = 0.0;
   int iteration_offset = 0;  // reports are numbered after the iterations of earlier phases
+  // The run also ends, converged, as soon as the pose satisfies this: it has reached a pose
+  // known to lie where the run would converge. Empty: never.
+  std::function<bool(const RigidTransform&)> reached;
 };
 
 // Runs the loop from `pose`, appending to result.trace and setting result.transform,

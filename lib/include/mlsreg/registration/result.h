@@ -79,6 +79,10 @@ struct AutoCandidate {
   int iterations = 0;                     // of its refinement
   VerificationScore score;                // of `refined`
   double seconds = 0.0;                   // its refinement and verification
+  // kGlobal: its alignment reached the verified start's pose (within the coarse alignment's
+  // final capture range of it), where it would have converged too: it stopped there, was not
+  // verified again, and `score` is the start's.
+  bool in_start_basin = false;
 };
 
 struct AutoStageTimings {
