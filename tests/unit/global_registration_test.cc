@@ -473,6 +473,17 @@ TEST(AutoMethodTest, FromAHalfTurnItFindsTheTruthAndSaysWhichCandidateWon) {
   for (const AutoCandidate& c : report.candidates) {
     EXPECT_FALSE(c.in_start_basin);  // the start did not verify: every candidate is its own
   }
+  // The first candidate that verifies over at least accept_fraction of the source ends the
+  // search, as the start would have: it is the last one tried, and the one chosen.
+  const RegistrationOptions defaults;
+  const auto acceptable = [&](const AutoCandidate& c) {
+    return c.score.verified() && c.score.covered_fraction() >= defaults.automatic.accept_fraction;
+  };
+  ASSERT_TRUE(acceptable(report.candidates.back()));
+  for (std::size_t k = 1; k + 1 < report.candidates.size(); ++k) {
+    EXPECT_FALSE(acceptable(report.candidates[k])) << k;
+  }
+  EXPECT_EQ(report.chosen, static_cast<int>(report.candidates.size()) - 1);
   EXPECT_TRUE(report.verification.verified());
   EXPECT_GT(report.verification.inlier_fraction, 0.6);
   EXPECT_GT(report.feature_matches, 50);

@@ -152,6 +152,9 @@ class AutoRegistration {
            in_start_basin ? report_.candidates[0].score : Verify(r.transform), Seconds(t),
            in_start_basin});
       aligned.push_back(std::move(r));
+      // A candidate that verifies over enough of the source ends the search, as the start would
+      // have (Acceptable): the candidates after it, with fewer feature inliers, are not tried.
+      if (!in_start_basin && Acceptable(report_.candidates.back().score)) break;
     }
     report_.timings.candidates = Seconds(phase);
 
