@@ -43,7 +43,8 @@ struct IterationReport {
 };
 
 enum class Termination {
-  kConverged,              // samples stopped moving, or alternate between two poses
+  kConverged,              // samples stopped moving, alternate between two poses, or reached
+                           // a pose the run is known to converge to (auto's global candidates)
   kMaxIterations,          // max_iterations reached
   kCancelled,              // should_stop returned true
   kTooFewCorrespondences,  // fewer than min_correspondences survived the filters
