@@ -50,10 +50,13 @@ std::optional<LocalPlane> PlaneCovariance(const std::vector<Vec3>& points, const
     const Vec3 d = points[indices[i]] - mean;
     c.noalias() += d * d.transpose();
   }
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(c);
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
+  solver.computeDirect(c);  // closed form: a few times faster than the iterative solver
   if (solver.info() != Eigen::Success || !(solver.eigenvalues()[1] > 0.0)) return std::nullopt;
-  const Eigen::Matrix3d& v = solver.eigenvectors();
-  return LocalPlane{v * Vec3(epsilon, 1.0, 1.0).asDiagonal() * v.transpose(), d2[found - 1]};
+  // V diag(epsilon, 1, 1) V^T, V's first column the normal n: I - (1 - epsilon) n n^T.
+  const Vec3 n = solver.eigenvectors().col(0);
+  return LocalPlane{Eigen::Matrix3d::Identity() - (1.0 - epsilon) * n * n.transpose(),
+                    d2[found - 1]};
 }
 
 // The neighbourhood gate: a pair is kept within this share of the radius of its target point's

@@ -49,6 +49,9 @@ class MlsPatches {
   // Anchor spacing h as a fraction of r, and the patches blended per query.
   static constexpr double kAnchorSpacingPerRadius = 0.5;
   static constexpr int kBlendedPatches = 4;
+  // Algorithm 1 fits an anchor's patch until an iteration moves it by less than this share of r
+  // (when MlsOptions::tolerance is not set).
+  static constexpr double kAnchorTolerancePerRadius = 1e-2;
 
   // The anchors nearest a query's last blend point, kept for its next projection (see above).
   // Starts empty; owned by the caller, one per query, used by one thread at a time.
