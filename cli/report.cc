@@ -30,7 +30,10 @@ std::string FinishLine(const FinishReport& f, bool verified, double d) {
       "moved %.3f d: %s\n",
       FinishKindName(f.kind), f.noise_d, clean ? "<" : ">=", f.crossover_d, f.samples, f.iterations,
       d > 0.0 ? f.moved / d : 0.0,
-      f.kept ? "kept (verified)" : "not kept (did not verify; the refined pose is returned)");
+      f.kept           ? "kept (verified)"
+      : f.contradicted ? "not kept (did not verify), and it moved the verified pose beyond the "
+                         "verdict's settling bound: the refined pose is returned pulled"
+                       : "not kept (did not verify; the refined pose is returned)");
 }
 }  // namespace
 
@@ -275,6 +278,7 @@ nlohmann::json ResultJson(std::string_view method, const RegistrationResult& res
                    {"iterations", a->finish.iterations},
                    {"kept", a->finish.kept},
                    {"moved", a->finish.moved},
+                   {"contradicted", a->finish.contradicted},
                    {"seconds", a->finish.seconds}}}};
   }
   if (error) {

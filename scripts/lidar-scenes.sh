@@ -2,15 +2,16 @@
 # The LiDAR scan sets: mlsreg-scan --lidar over procedural streets, a KITTI-like sensor (the
 # HDL-64E's beam layout at 0.17 degrees: about 120k points per scan), 16 frame pairs per scene
 # 4, 8 and 12 m apart, range noise 0.01 and 0.03 m, moving cars and pedestrians.
-#   TUNING    street seeds 1-3 and open_road seed 1: defaults are chosen on these only
+#   TUNING    street seeds 1-3, open_road seed 1, corridor seeds 1-3: defaults are chosen on these
+#             only
 #   HELD-OUT  street seeds 101-104, open_road seed 101, corridor seed 101: reported, never tuned on
 #
 #   bash scripts/lidar-scenes.sh
 #
 # Writes $OUT/{tuning,heldout}/<kind>_s<seed>/noise<sigma>/{scan_*.ply,pairs.csv,
 # pairs_identity.csv} and <set>/manifests_noise<sigma>.txt (one pairs.csv per line, for
-# `mlsreg eval --pairs`). A set with its .done marker is not generated again (delete the folder to
-# redo it). Expects a configured build folder (scripts/build.sh); builds only mlsreg-scan.
+# `mlsreg eval --pairs`). A set whose .done marker lists the same scenes is not generated again
+# (delete the folder to redo it). Expects a configured build folder (scripts/build.sh); builds only mlsreg-scan.
 # Environment: BUILD_DIR (build), OUT (default $BUILD_DIR/lidar), JOBS (build jobs, default all
 # cores).
 set -euo pipefail
@@ -30,7 +31,7 @@ movers_for() { case $1 in street) echo 10 ;; corridor) echo 6 ;; open_road) echo
 generate() {
   local set=$1 dir=$OUT/$1 spec kind seed start
   shift
-  if [ -f "$dir/.done" ]; then
+  if [ -f "$dir/.done" ] && [ "$(cat "$dir/.done")" = "$*" ]; then
     echo "== $set: already in $dir"
     return
   fi
@@ -49,9 +50,9 @@ generate() {
   done
   awk -v a="$start" -v b="$(date +%s.%N)" -v d="$dir" \
     'BEGIN { printf "   %.1f s, in %s\n", b - a, d }'
-  touch "$dir/.done"
+  echo "$*" > "$dir/.done"  # the scenes it holds: a set whose list changes is made again
 }
 
-generate tuning street:1 street:2 street:3 open_road:1
+generate tuning street:1 street:2 street:3 open_road:1 corridor:1 corridor:2 corridor:3
 generate heldout street:101 street:102 street:103 street:104 open_road:101 corridor:101
 du -sh "$OUT/tuning" "$OUT/heldout"

@@ -107,6 +107,7 @@ void AutoReportToProto(const AutoReport& r, v1::AutoReport* out) {
   finish->set_iterations(r.finish.iterations);
   finish->set_kept(r.finish.kept);
   finish->set_moved(r.finish.moved);
+  finish->set_contradicted(r.finish.contradicted);
   finish->set_seconds(r.finish.seconds);
 }
 
@@ -140,6 +141,7 @@ AutoReport AutoReportFromProto(const v1::AutoReport& p) {
   r.finish.iterations = finish.iterations();
   r.finish.kept = finish.kept();
   r.finish.moved = finish.moved();
+  r.finish.contradicted = finish.contradicted();
   r.finish.seconds = finish.seconds();
   return r;
 }

@@ -90,7 +90,7 @@ py::dict AutoToPython(const AutoReport& report) {
                         py::arg("noise_d") = f.noise_d, py::arg("crossover_d") = f.crossover_d,
                         py::arg("samples") = f.samples, py::arg("iterations") = f.iterations,
                         py::arg("kept") = f.kept, py::arg("moved") = f.moved,
-                        py::arg("seconds") = f.seconds);
+                        py::arg("contradicted") = f.contradicted, py::arg("seconds") = f.seconds);
   return py::dict(py::arg("candidates") = candidates, py::arg("chosen") = report.chosen,
                   py::arg("verified") = report.verified,
                   py::arg("verification") = ScoreToPython(report.verification),

@@ -121,6 +121,7 @@ def test_register_recovers_the_ground_truth(bun000, bunny_target, gt, near_start
     finish = result.auto["finish"]
     assert finish["kind"] == ("plane-to-plane" if finish["noise_d"] < finish["crossover_d"] else "mls")
     assert finish["kept"] and finish["samples"] > 2000 and finish["iterations"] >= 1
+    assert finish["contradicted"] is False
     assert result.verification["verdict"] == "verified" and result.verification["covered"] > 0
     # Verified means the agreeing samples fix every direction of motion to a standard error of at
     # most one noise sigma, a third of the band.
@@ -424,5 +425,6 @@ def test_auto_finishes_a_pulled_result_and_keeps_the_finish_only_if_it_verifies(
     assert report["finish"]["kind"] == "mls"  # it ran on the pulled result
     assert report["finish"]["iterations"] == 1
     assert report["finish"]["kept"] is False
+    assert report["finish"]["contradicted"] is False  # only a verified pose can be contradicted
     assert result.verification["verdict"] == "pulled"
     assert np.allclose(np.asarray(chosen["refined"]).reshape(4, 4), result.transform)

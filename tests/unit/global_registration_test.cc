@@ -346,6 +346,42 @@ TEST(VerificationTest, NormalsThatDisagreeWithTheTargetsBeyondNoiseTakeNoPartInT
 
 // Points above a sampled plane are their height away from its MLS surface; far from the samples
 // the distance is the one to the nearest sample.
+// A longer settling than the verification's own (auto's finish) that moves a verified pose
+// beyond the verdict's settling bound makes it pulled, with that settling; within the bound, or
+// for a pose that was not verified, nothing changes.
+TEST(VerificationTest, ASettlingBeyondTheBoundPullsAVerifiedPose) {
+  auto target = Target::Build(SampleBumpySurface(20'000, -1.0, 1.0, 1, 0.01)).value();
+  const PointCloud source = SampleBumpySurface(20'000, -1.0, 1.0, 2, 0.01);
+  const VerificationScore right = VerifyPose(*target, source, Matrix4::Identity());
+  ASSERT_TRUE(right.verified()) << VerdictName(right.verdict);
+  const VerificationOptions options;
+  const double median_spacing = target->scales().median_spacing;
+  // The bound: one noise sigma of the band (band / 3), at least one median spacing.
+  const double bound = std::max(right.inlier_distance / options.band_per_noise,
+                                options.min_band_spacings * median_spacing);
+
+  VerificationScore within = right;
+  EXPECT_FALSE(PulledBySettling(within, 0.9 * bound, median_spacing));
+  EXPECT_EQ(within.verdict, Verdict::kVerified);
+  EXPECT_EQ(within.settle_displacement, right.settle_displacement);
+
+  VerificationScore beyond = right;
+  EXPECT_TRUE(PulledBySettling(beyond, 1.1 * bound, median_spacing));
+  EXPECT_EQ(beyond.verdict, Verdict::kPulled);
+  EXPECT_FALSE(beyond.verified());
+  EXPECT_EQ(beyond.settle_displacement, 1.1 * bound);
+  EXPECT_EQ(beyond.inliers, right.inliers);
+
+  // Only a verified pose is judged again.
+  Matrix4 lifted = Matrix4::Identity();
+  lifted(2, 3) = 0.3;
+  VerificationScore wrong = VerifyPose(*target, source, lifted);
+  ASSERT_FALSE(wrong.verified());
+  const Verdict before = wrong.verdict;
+  EXPECT_FALSE(PulledBySettling(wrong, 100.0 * bound, median_spacing));
+  EXPECT_EQ(wrong.verdict, before);
+}
+
 TEST(VerificationTest, DistancesToTheMlsSurfaceOfAPlane) {
   auto plane = Target::Build(testing::SamplePlaneGrid(1.0, 0.02, 0.002, 3)).value();
   const std::vector<Vec3> points = {Vec3(0.1, 0.2, 0.0), Vec3(0.1, 0.2, 0.03),

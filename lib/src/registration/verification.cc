@@ -310,6 +310,12 @@ double FeatureAngle(std::span<const Vec3> points, std::span<const Vec3> normals,
 // samples would (then the samples that would fix it disagree) or not even they.
 enum class DirectionCheck { kFixed, kDisagrees, kUnconstrained };
 
+// The settling beyond which a pose is pulled: max_settle_sigmas noise sigmas of the band, at
+// least `floor`.
+double SettleBound(const VerificationScore& s, const VerificationOptions& o, double floor) {
+  return std::max(o.max_settle_sigmas * s.inlier_distance / o.band_per_noise, floor);
+}
+
 Verdict Judge(const VerificationScore& s, DirectionCheck direction, const VerificationOptions& o,
               double rms_per_band, double floor) {
   if (s.covered < o.min_covered_samples) return Verdict::kTooLittleOverlap;
@@ -321,9 +327,7 @@ Verdict Judge(const VerificationScore& s, DirectionCheck direction, const Verifi
   if (s.coherent_residual > o.max_coherent_sigmas * s.inlier_distance / o.band_per_noise) {
     return Verdict::kCoherentResiduals;
   }
-  const double settle_bound =
-      std::max(o.max_settle_sigmas * s.inlier_distance / o.band_per_noise, floor);
-  if (s.settle_displacement > settle_bound ||
+  if (s.settle_displacement > SettleBound(s, o, floor) ||
       (s.pull_fraction > o.max_pull_fraction && s.settle_displacement > floor)) {
     return Verdict::kPulled;
   }
@@ -570,6 +574,17 @@ VerificationScore VerifyPose(const Target& target, const PointCloud& source,
   const NoiseEstimate noise =
       EstimateNoise(source.points, tree, target.sampling_distance(), {}, {}, {}, threads);
   return VerifyPose(target, source, transform, noise.sigma_d, threads);
+}
+
+bool PulledBySettling(VerificationScore& score, double displacement, double median_spacing,
+                      const VerificationOptions& options) {
+  if (!score.verified() ||
+      !(displacement > SettleBound(score, options, options.min_band_spacings * median_spacing))) {
+    return false;
+  }
+  score.verdict = Verdict::kPulled;
+  score.settle_displacement = std::max(score.settle_displacement, displacement);
+  return true;
 }
 
 bool BetterScore(const VerificationScore& a, const VerificationScore& b) {

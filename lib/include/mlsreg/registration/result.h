@@ -113,6 +113,9 @@ struct FinishReport {
   // pulled and still not verified) is kept with its verdict.
   bool kept = false;
   double moved = 0.0;  // RMS displacement of the verification samples from the refined pose
+  // Not kept, and it moved a verified pose beyond the verdict's settling bound
+  // (PulledBySettling): the refined pose is returned `pulled`, not verified.
+  bool contradicted = false;
 
   double seconds = 0.0;
 };

@@ -192,6 +192,15 @@ VerificationScore VerifyPose(const Target& target, const PointCloud& source,
 VerificationScore VerifyPose(const Target& target, const PointCloud& source,
                              const Matrix4& transform, double source_noise_d, int threads);
 
+// A verified `score` whose pose a longer settling than its own (method auto's finish, over every
+// source point) moved by `displacement`, to a pose that did not verify: the settling says where
+// the data put the pose, and beyond the verdict's settling bound (max_settle_sigmas noise sigmas
+// of the band, at least min_band_spacings of `median_spacing`) the pose is not there. Then the
+// score becomes `pulled` with that displacement as its settling, and true is returned; otherwise
+// it is left as it is.
+bool PulledBySettling(VerificationScore& score, double displacement, double median_spacing,
+                      const VerificationOptions& options = {});
+
 // Whether `a` explains the source better than `b` (ranks candidate poses): the verdict first,
 // then more inliers by at least 1 % (within that, two poses are the same answer).
 bool BetterScore(const VerificationScore& a, const VerificationScore& b);
