@@ -18,8 +18,9 @@ RUN bash scripts/install-deps.sh && rm -rf /var/lib/apt/lists/*
 COPY . .
 RUN BUILD_DIR=/build bash scripts/build.sh -DMLSREG_BUILD_TESTS=OFF -DMLSREG_BUILD_BENCHMARKS=OFF \
       -DMLSREG_BUILD_PYTHON=OFF \
- && bash scripts/runtime-packages.sh /build/mlsreg > /build/runtime-packages.txt \
- && strip /build/mlsreg
+ && bash scripts/runtime-packages.sh /build/mlsreg /build/libmlsreg_transport.so \
+      > /build/runtime-packages.txt \
+ && strip /build/mlsreg /build/libmlsreg_transport.so
 
 FROM debian:12-slim AS runtime
 COPY --from=build /build/runtime-packages.txt /tmp/runtime-packages.txt
@@ -28,6 +29,8 @@ RUN apt-get update \
  && rm -rf /var/lib/apt/lists/* /tmp/runtime-packages.txt \
  && useradd --system --uid 10001 --home-dir /var/lib/mlsreg --create-home mlsreg
 COPY --from=build /build/mlsreg /usr/local/bin/mlsreg
+# The gRPC client and server, which `mlsreg serve` and the client commands load (cli/transport.h).
+COPY --from=build /build/libmlsreg_transport.so /usr/local/lib/mlsreg/libmlsreg_transport.so
 USER mlsreg
 VOLUME /var/lib/mlsreg
 EXPOSE 50051 9464

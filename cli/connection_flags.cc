@@ -3,6 +3,7 @@
 #include <cctype>
 #include <cstdlib>
 
+#include "cli/transport.h"
 #include "mlsreg/io/io.h"
 
 namespace mlsreg::cli {
@@ -55,7 +56,9 @@ absl::StatusOr<std::unique_ptr<client::Client>> ConnectionFlags::Connect() const
     if (const char* token = std::getenv("MLSREG_TOKEN")) options.token = token;
   }
   if (!options.ca_cert.empty() || !options.client_cert.empty()) options.tls = true;
-  return client::Client::Connect(options);
+  absl::StatusOr<const TransportApi*> transport = Transport();
+  if (!transport.ok()) return transport.status();
+  return (*transport)->connect(options);
 }
 
 }  // namespace mlsreg::cli

@@ -7,7 +7,8 @@
 #include <vector>
 
 #include "cli/commands.h"
-#include "server/server.h"
+#include "cli/exit_codes.h"
+#include "cli/transport.h"
 #include "server/server_config.h"
 
 namespace mlsreg::cli {
@@ -30,9 +31,12 @@ void Bind(CLI::App& cmd, ServeArgs& args, const std::string& flag, const std::st
 }
 
 int RunServe(ServeArgs& args) {
+  absl::StatusOr<const TransportApi*> transport = Transport();
+  if (!transport.ok()) return ExitFor("serve", transport.status());
+  const TransportApi& api = **transport;
   server::ServerConfig config;
   if (!args.config_file.empty()) {
-    if (absl::Status s = server::LoadConfigFile(args.config_file, &config); !s.ok()) {
+    if (absl::Status s = api.load_server_config(args.config_file, &config); !s.ok()) {
       std::fprintf(stderr, "mlsreg serve: %s\n", std::string(s.message()).c_str());
       return 2;
     }
@@ -40,11 +44,11 @@ int RunServe(ServeArgs& args) {
   for (auto& [option, apply] : args.overrides) {
     if (option->count() > 0 || args.config_file.empty()) apply(config);
   }
-  if (absl::Status s = server::Validate(config); !s.ok()) {
+  if (absl::Status s = api.validate_server_config(config); !s.ok()) {
     std::fprintf(stderr, "mlsreg serve: %s\n", std::string(s.message()).c_str());
     return 2;
   }
-  return server::RunServerUntilSignal(config);
+  return api.run_server_until_signal(config);
 }
 
 }  // namespace

@@ -151,7 +151,39 @@ struct Replica {
   void MarkDown() { down_until = (SteadyClock::now() + kDownTime).time_since_epoch().count(); }
 };
 
-struct Client::Impl {
+// The gRPC implementation of Client.
+class GrpcClient final : public Client {
+ public:
+  struct Impl;
+  GrpcClient(const ClientOptions& options, std::unique_ptr<Impl> impl);
+  ~GrpcClient() override;
+
+  using Client::UploadTarget;
+  absl::StatusOr<TargetInfo> UploadTarget(const std::string& id,
+                                          std::shared_ptr<const PointCloud> cloud) override;
+  absl::StatusOr<TargetInfo> GetTarget(const std::string& id) override;
+  std::string DigestAsSent(const PointCloud& cloud) const override;
+  absl::StatusOr<std::vector<TargetInfo>> ListTargets() override;
+  absl::Status DeleteTarget(const std::string& id) override;
+  absl::StatusOr<RemoteRegistrationResult> Register(
+      const std::string& target_id, const PointCloud& source, const Matrix4& initial,
+      const RegistrationOptions& options, const std::optional<Matrix4>& ground_truth,
+      const std::function<void(const IterationReport&)>& on_progress,
+      const std::atomic<bool>* cancel) override;
+  absl::StatusOr<RemoteAlignResult> AlignScans(
+      const std::vector<RemoteScan>& scans, const AlignOptions& options,
+      const std::function<void(const AlignEdge&, int done, int total)>& on_edge,
+      const std::atomic<bool>* cancel) override;
+  absl::StatusOr<ServerHealth> Health(std::size_t replica) override;
+  absl::StatusOr<std::string> StatsJson(std::size_t replica) override;
+  std::vector<std::string> replicas() const override;
+  std::string ReplicaFor(const std::string& target_id) const override;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+struct GrpcClient::Impl {
   ClientOptions options;
   std::vector<std::unique_ptr<Replica>> replicas;
   std::mutex mutex;  // guards jitter and uploaded
@@ -252,9 +284,9 @@ struct Client::Impl {
                                      const PointCloud& cloud);
 };
 
-Client::Client(const ClientOptions& options, std::unique_ptr<Impl> impl)
-    : options_(options), impl_(std::move(impl)) {}
-Client::~Client() = default;
+GrpcClient::GrpcClient(const ClientOptions& options, std::unique_ptr<Impl> impl)
+    : Client(options), impl_(std::move(impl)) {}
+GrpcClient::~GrpcClient() = default;
 
 absl::StatusOr<std::unique_ptr<Client>> Client::Connect(const ClientOptions& options) {
   if (options.address.empty()) return absl::InvalidArgumentError("server address is empty");
@@ -296,7 +328,7 @@ absl::StatusOr<std::unique_ptr<Client>> Client::Connect(const ClientOptions& opt
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(64 << 20);
   args.SetMaxSendMessageSize(64 << 20);
-  auto impl = std::make_unique<Impl>();
+  auto impl = std::make_unique<GrpcClient::Impl>();
   impl->options = options;
   for (const std::string& address : addresses) {
     auto r = std::make_unique<Replica>();
@@ -308,21 +340,23 @@ absl::StatusOr<std::unique_ptr<Client>> Client::Connect(const ClientOptions& opt
     r->health = grpc::health::v1::Health::NewStub(r->channel);
     impl->replicas.push_back(std::move(r));
   }
-  return std::unique_ptr<Client>(new Client(options, std::move(impl)));
+  return std::unique_ptr<Client>(new GrpcClient(options, std::move(impl)));
 }
 
-std::vector<std::string> Client::replicas() const {
+std::vector<std::string> GrpcClient::replicas() const {
   std::vector<std::string> out;
   for (const auto& r : impl_->replicas) out.push_back(r->address);
   return out;
 }
 
-std::string Client::ReplicaFor(const std::string& target_id) const {
+std::string GrpcClient::ReplicaFor(const std::string& target_id) const {
   return impl_->Order(target_id).front()->address;
 }
 
-absl::StatusOr<TargetInfo> Client::Impl::UploadTo(Replica& replica, grpc::ClientContext& context,
-                                                  const std::string& id, const PointCloud& cloud) {
+absl::StatusOr<TargetInfo> GrpcClient::Impl::UploadTo(Replica& replica,
+                                                      grpc::ClientContext& context,
+                                                      const std::string& id,
+                                                      const PointCloud& cloud) {
   v1::CreateTargetRequest header_message;
   header_message.mutable_header()->set_target_id(id);
   std::string payload;
@@ -347,23 +381,24 @@ absl::StatusOr<TargetInfo> Client::Impl::UploadTo(Replica& replica, grpc::Client
   return wire::FromProto(response);
 }
 
-std::string Client::Impl::DigestOfEncoded(const v1::CloudHeader& header, const std::string& payload,
-                                          const PointCloud& cloud) {
+std::string GrpcClient::Impl::DigestOfEncoded(const v1::CloudHeader& header,
+                                              const std::string& payload, const PointCloud& cloud) {
   if (header.scalar_type() == v1::SCALAR_TYPE_FLOAT64) return CloudDigest(cloud);  // exact
   auto decoded = wire::DecodeCloud(header, payload, "cloud");
   return decoded.ok() ? CloudDigest(*decoded) : std::string();  // the server will refuse it
 }
 
-std::string Client::DigestAsSent(const PointCloud& cloud) const {
+std::string GrpcClient::DigestAsSent(const PointCloud& cloud) const {
   v1::CloudHeader header;
   std::string payload;
-  wire::EncodeCloud(cloud, options_.float32 ? v1::SCALAR_TYPE_FLOAT32 : v1::SCALAR_TYPE_FLOAT64,
+  wire::EncodeCloud(cloud,
+                    Client::options().float32 ? v1::SCALAR_TYPE_FLOAT32 : v1::SCALAR_TYPE_FLOAT64,
                     &header, &payload);
   return Impl::DigestOfEncoded(header, payload, cloud);
 }
 
-absl::StatusOr<TargetInfo> Client::UploadTarget(const std::string& id,
-                                                std::shared_ptr<const PointCloud> cloud) {
+absl::StatusOr<TargetInfo> GrpcClient::UploadTarget(const std::string& id,
+                                                    std::shared_ptr<const PointCloud> cloud) {
   {
     std::lock_guard<std::mutex> lock(impl_->mutex);
     impl_->uploaded[id] = cloud;
@@ -375,11 +410,7 @@ absl::StatusOr<TargetInfo> Client::UploadTarget(const std::string& id,
       });
 }
 
-absl::StatusOr<TargetInfo> Client::UploadTarget(const std::string& id, const PointCloud& cloud) {
-  return UploadTarget(id, std::make_shared<const PointCloud>(cloud));
-}
-
-absl::StatusOr<TargetInfo> Client::GetTarget(const std::string& id) {
+absl::StatusOr<TargetInfo> GrpcClient::GetTarget(const std::string& id) {
   v1::GetTargetRequest request;
   request.set_target_id(id);
   return impl_->Call<TargetInfo>(
@@ -392,7 +423,7 @@ absl::StatusOr<TargetInfo> Client::GetTarget(const std::string& id) {
       });
 }
 
-absl::StatusOr<std::vector<TargetInfo>> Client::ListTargets() {
+absl::StatusOr<std::vector<TargetInfo>> GrpcClient::ListTargets() {
   std::vector<TargetInfo> all;
   for (const auto& replica : impl_->replicas) {
     std::string token;
@@ -421,7 +452,7 @@ absl::StatusOr<std::vector<TargetInfo>> Client::ListTargets() {
   return all;
 }
 
-absl::Status Client::DeleteTarget(const std::string& id) {
+absl::Status GrpcClient::DeleteTarget(const std::string& id) {
   v1::DeleteTargetRequest request;
   request.set_target_id(id);
   {
@@ -440,7 +471,7 @@ absl::Status Client::DeleteTarget(const std::string& id) {
       .status();
 }
 
-absl::StatusOr<RemoteRegistrationResult> Client::Register(
+absl::StatusOr<RemoteRegistrationResult> GrpcClient::Register(
     const std::string& target_id, const PointCloud& source, const Matrix4& initial,
     const RegistrationOptions& options, const std::optional<Matrix4>& ground_truth,
     const std::function<void(const IterationReport&)>& on_progress,
@@ -448,10 +479,11 @@ absl::StatusOr<RemoteRegistrationResult> Client::Register(
   v1::RegisterRequest header_message;
   v1::RegisterHeader* header = header_message.mutable_header();
   std::string payload;
-  wire::BuildRegisterHeader(target_id, source,
-                            options_.float32 ? v1::SCALAR_TYPE_FLOAT32 : v1::SCALAR_TYPE_FLOAT64,
-                            options, initial, ground_truth, header, &payload);
-  const bool inline_source = payload.size() <= options_.chunk_bytes;
+  wire::BuildRegisterHeader(
+      target_id, source,
+      Client::options().float32 ? v1::SCALAR_TYPE_FLOAT32 : v1::SCALAR_TYPE_FLOAT64, options,
+      initial, ground_truth, header, &payload);
+  const bool inline_source = payload.size() <= Client::options().chunk_bytes;
   if (inline_source) header->set_source_data(payload);
 
   // NOT_FOUND on a target this client uploaded: the replica lost it (restart without storage)
@@ -481,10 +513,11 @@ absl::StatusOr<RemoteRegistrationResult> Client::Register(
         const CancelWatcher watcher(context, cancel);
         if (stream->Write(header_message) && !inline_source) {
           v1::RegisterRequest chunk_message;
-          wire::WriteChunks(payload, options_.chunk_bytes, [&](const v1::CloudChunk& chunk) {
-            *chunk_message.mutable_source_chunk() = chunk;
-            return stream->Write(chunk_message);
-          });
+          wire::WriteChunks(payload, Client::options().chunk_bytes,
+                            [&](const v1::CloudChunk& chunk) {
+                              *chunk_message.mutable_source_chunk() = chunk;
+                              return stream->Write(chunk_message);
+                            });
         }
         stream->WritesDone();
         v1::RegisterResponse response;
@@ -519,7 +552,7 @@ absl::StatusOr<RemoteRegistrationResult> Client::Register(
   return result;
 }
 
-absl::StatusOr<RemoteAlignResult> Client::AlignScans(
+absl::StatusOr<RemoteAlignResult> GrpcClient::AlignScans(
     const std::vector<RemoteScan>& scans, const AlignOptions& options,
     const std::function<void(const AlignEdge&, int, int)>& on_edge,
     const std::atomic<bool>* cancel) {
@@ -534,9 +567,10 @@ absl::StatusOr<RemoteAlignResult> Client::AlignScans(
       if (route.empty()) route = scans[i].target_id;
     } else if (scans[i].cloud) {
       std::string data;
-      wire::EncodeCloud(*scans[i].cloud,
-                        options_.float32 ? v1::SCALAR_TYPE_FLOAT32 : v1::SCALAR_TYPE_FLOAT64,
-                        scan->mutable_cloud(), &data);
+      wire::EncodeCloud(
+          *scans[i].cloud,
+          Client::options().float32 ? v1::SCALAR_TYPE_FLOAT32 : v1::SCALAR_TYPE_FLOAT64,
+          scan->mutable_cloud(), &data);
       payload += data;
     } else {
       return absl::InvalidArgumentError(
@@ -554,10 +588,11 @@ absl::StatusOr<RemoteAlignResult> Client::AlignScans(
         const CancelWatcher watcher(context, cancel);
         if (stream->Write(header_message) && !payload.empty()) {
           v1::AlignScansRequest chunk_message;
-          wire::WriteChunks(payload, options_.chunk_bytes, [&](const v1::CloudChunk& chunk) {
-            *chunk_message.mutable_scan_chunk() = chunk;
-            return stream->Write(chunk_message);
-          });
+          wire::WriteChunks(payload, Client::options().chunk_bytes,
+                            [&](const v1::CloudChunk& chunk) {
+                              *chunk_message.mutable_scan_chunk() = chunk;
+                              return stream->Write(chunk_message);
+                            });
         }
         stream->WritesDone();
         v1::AlignScansResponse response;
@@ -589,7 +624,7 @@ absl::StatusOr<RemoteAlignResult> Client::AlignScans(
   return result;
 }
 
-absl::StatusOr<ServerHealth> Client::Health(std::size_t replica_index) {
+absl::StatusOr<ServerHealth> GrpcClient::Health(std::size_t replica_index) {
   if (replica_index >= impl_->replicas.size()) {
     return absl::InvalidArgumentError("no such replica");
   }
@@ -609,7 +644,7 @@ absl::StatusOr<ServerHealth> Client::Health(std::size_t replica_index) {
       });
 }
 
-absl::StatusOr<std::string> Client::StatsJson(std::size_t replica_index) {
+absl::StatusOr<std::string> GrpcClient::StatsJson(std::size_t replica_index) {
   if (replica_index >= impl_->replicas.size()) {
     return absl::InvalidArgumentError("no such replica");
   }

@@ -41,6 +41,9 @@ check(re.search(r"^VOLUME /var/lib/mlsreg", dockerfile, re.M), "Dockerfile decla
 check(re.search(r"^HEALTHCHECK .*\n?.*mlsreg\", \"health\"", dockerfile, re.M),
       "Dockerfile health check uses mlsreg health")
 check('ENTRYPOINT ["mlsreg", "serve"]' in dockerfile, "Dockerfile entrypoint is the server")
+check(re.search(r"^COPY --from=build /build/libmlsreg_transport.so "
+                r"/usr/local/lib/mlsreg/libmlsreg_transport.so$", dockerfile, re.M),
+      "Dockerfile installs the transport module where /usr/local/bin/mlsreg looks (../lib/mlsreg)")
 
 # docker-compose: port, volume, health check, grace period longer than the drain.
 compose = load("deploy/docker-compose.yml")
@@ -89,8 +92,10 @@ check(overlay["resources"] == ["../.."], "TLS overlay builds on the base")
 for doc in yaml.safe_load_all(open(os.path.join(src, "deploy/k8s/secret.example.yaml"))):
     check(doc["kind"] == "Secret", "example secret parses")
 
-# The runtime image installs exactly the packages owning the binary's libraries.
-packages = subprocess.run(["bash", os.path.join(src, "scripts/runtime-packages.sh"), binary],
+# The runtime image installs exactly the packages owning the libraries of the binary and of the
+# transport module beside it.
+module = os.path.join(os.path.dirname(binary), "libmlsreg_transport.so")
+packages = subprocess.run(["bash", os.path.join(src, "scripts/runtime-packages.sh"), binary, module],
                           check=True, capture_output=True, text=True).stdout.split()
 check("libgrpc++1.51" in packages and "libprotobuf32" in packages,
       f"runtime packages include gRPC and protobuf: {packages}")

@@ -69,59 +69,65 @@ struct ServerHealth {
   std::string status;  // SERVING, NOT_SERVING, ...
 };
 
+// The interface; Connect makes the gRPC implementation. Its methods are virtual so that a
+// program can reach a client through a transport module it loads only when it needs one (the
+// mlsreg tool: cli/transport.h), without linking gRPC itself.
 class Client {
  public:
   static absl::StatusOr<std::unique_ptr<Client>> Connect(const ClientOptions& options);
-  ~Client();
+  virtual ~Client() = default;
 
   // Uploads to the target's replica, declaring the cloud's digest: when the replica already
   // holds the same content under `id` it answers at once (no data is sent); other content under
   // `id` is ALREADY_EXISTS. The client keeps a reference to the cloud so it can upload it again if
   // a replica loses it (restart without storage, or re-routing).
-  absl::StatusOr<TargetInfo> UploadTarget(const std::string& id,
-                                          std::shared_ptr<const PointCloud> cloud);
-  absl::StatusOr<TargetInfo> UploadTarget(const std::string& id, const PointCloud& cloud);
-  absl::StatusOr<TargetInfo> GetTarget(const std::string& id);
+  virtual absl::StatusOr<TargetInfo> UploadTarget(const std::string& id,
+                                                  std::shared_ptr<const PointCloud> cloud) = 0;
+  absl::StatusOr<TargetInfo> UploadTarget(const std::string& id, const PointCloud& cloud) {
+    return UploadTarget(id, std::make_shared<const PointCloud>(cloud));
+  }
+  virtual absl::StatusOr<TargetInfo> GetTarget(const std::string& id) = 0;
   // The digest the server will compute for `cloud` as this client sends it (float32 rounding
   // included).
-  std::string DigestAsSent(const PointCloud& cloud) const;
-  absl::StatusOr<std::vector<TargetInfo>> ListTargets();  // all pages of every replica
-  absl::Status DeleteTarget(const std::string& id);
+  virtual std::string DigestAsSent(const PointCloud& cloud) const = 0;
+  // All pages of every replica.
+  virtual absl::StatusOr<std::vector<TargetInfo>> ListTargets() = 0;
+  virtual absl::Status DeleteTarget(const std::string& id) = 0;
 
   // Streams a registration; `on_progress` (may be empty) sees every progress message. Set
   // `*cancel` (may be null) to true from another thread to cancel the call.
-  absl::StatusOr<RemoteRegistrationResult> Register(
+  virtual absl::StatusOr<RemoteRegistrationResult> Register(
       const std::string& target_id, const PointCloud& source, const Matrix4& initial,
       const RegistrationOptions& options, const std::optional<Matrix4>& ground_truth = {},
       const std::function<void(const IterationReport&)>& on_progress = {},
-      const std::atomic<bool>* cancel = nullptr);
+      const std::atomic<bool>* cancel = nullptr) = 0;
 
   // Aligns many scans into one frame on one server: the replica of the first cached scan's
   // target id (every cached scan must be on it), or any replica when all are uploaded.
   // `on_edge` (may be empty) sees every edge as it finishes, with the count done and the total;
   // once each, also when a transient failure made the call run again.
   // Set `*cancel` (may be null) to true from another thread to cancel the call.
-  absl::StatusOr<RemoteAlignResult> AlignScans(
+  virtual absl::StatusOr<RemoteAlignResult> AlignScans(
       const std::vector<RemoteScan>& scans, const AlignOptions& options,
       const std::function<void(const AlignEdge&, int done, int total)>& on_edge = {},
-      const std::atomic<bool>* cancel = nullptr);
+      const std::atomic<bool>* cancel = nullptr) = 0;
 
   // The overall health of replica `replica` ("" service), via grpc.health.v1.
-  absl::StatusOr<ServerHealth> Health(std::size_t replica = 0);
+  virtual absl::StatusOr<ServerHealth> Health(std::size_t replica = 0) = 0;
   // Replica `replica`'s statistics as JSON text (the GetStats response).
-  absl::StatusOr<std::string> StatsJson(std::size_t replica = 0);
+  virtual absl::StatusOr<std::string> StatsJson(std::size_t replica = 0) = 0;
 
   // The replicas, in the order given (or resolved), and the one a target id maps to first.
-  std::vector<std::string> replicas() const;
-  std::string ReplicaFor(const std::string& target_id) const;
+  virtual std::vector<std::string> replicas() const = 0;
+  virtual std::string ReplicaFor(const std::string& target_id) const = 0;
 
   const ClientOptions& options() const { return options_; }
 
+ protected:
+  explicit Client(const ClientOptions& options) : options_(options) {}
+
  private:
-  struct Impl;
-  explicit Client(const ClientOptions& options, std::unique_ptr<Impl> impl);
   ClientOptions options_;
-  std::unique_ptr<Impl> impl_;
 };
 
 }  // namespace mlsreg::client
