@@ -45,8 +45,9 @@ class VoxelPlaneStep final : public IcpStep {
         [&](std::size_t begin, std::size_t end, int) {
           for (std::size_t i = begin; i < end; ++i) {
             SampleMatch& m = matches_[i];
+            const Vec3 previous = m.x;
             m.x = pose * samples_[i];
-            const Neighbor nn = CachedNearest(*target_.tree, target_.points, m.x, nearest_[i]);
+            const Neighbor nn = NearestVoxel(i, m.x, previous);
             m.kind = nn.distance_squared > capture_squared ? SampleMatch::kFar
                      : !target_.valid[nn.index]            ? SampleMatch::kInvalid
                                                            : SampleMatch::kMatched;
@@ -100,10 +101,23 @@ class VoxelPlaneStep final : public IcpStep {
   // One sample's match in this iteration.
   struct SampleMatch {
     enum Kind : std::uint8_t { kFar, kInvalid, kMatched };
-    Vec3 x;
+    Vec3 x = Vec3::Zero();
     std::uint32_t voxel = 0;
     Kind kind = kFar;
   };
+
+  // The target voxel nearest sample i's position `x`. A sample whose last step moved it by more
+  // than half its cache's reach is still travelling (the first iterations of a large
+  // misalignment): its cache would miss and refill at every step, and a refill (the M nearest)
+  // costs more than the nearest alone, so it asks the tree for the nearest and leaves its cache
+  // for when it slows down. The answer is the tree's either way.
+  Neighbor NearestVoxel(std::size_t i, const Vec3& x, const Vec3& previous) {
+    NeighborCache<8>& cache = nearest_[i];
+    if (cache.reach > 0.0 && (x - previous).squaredNorm() > 0.25 * cache.reach * cache.reach) {
+      return target_.tree->Nearest(x);
+    }
+    return CachedNearest(*target_.tree, target_.points, x, cache);
+  }
 
   double d_;
   int threads_;
