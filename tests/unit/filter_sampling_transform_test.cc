@@ -216,6 +216,47 @@ TEST(NeighborCacheTest, AnswersAreTheNearestAndMostComeFromTheCache) {
   EXPECT_LT(refills, queries / 3) << refills << " refills in " << queries << " queries";
 }
 
+// A query that jumps by more than half its cache's reach gets the tree's nearest without
+// refilling the cache; once it creeps, the cache answers again. The answer is always the nearest.
+TEST(NeighborCacheTest, ATravellingQueryAsksTheTreeAndLeavesItsCache) {
+  const PointCloud cloud = testing::SampleBumpySurface(3000, -1, 1, 3);
+  const KdTree tree(cloud.points);
+  const double spacing = SamplingDistance(cloud.points, tree);
+  const auto brute_nearest = [&](const Vec3& q) {
+    std::uint32_t best = 0;
+    for (std::uint32_t i = 1; i < cloud.size(); ++i) {
+      if ((cloud.points[i] - q).squaredNorm() < (cloud.points[best] - q).squaredNorm()) best = i;
+    }
+    return best;
+  };
+  NeighborCache<8> cache;
+  Vec3 previous(0.0, 0.0, 0.0), q = previous;
+  EXPECT_EQ(TravellingNearest(tree, cloud.points, q, previous, cache).index, brute_nearest(q));
+  ASSERT_GT(cache.reach, 0.0);  // the first question fills the cache
+  const Vec3 filled_at = cache.center;
+  // Travelling: steps of 20 spacings, far beyond the cache's reach.
+  int travelled = 0;
+  for (int step = 0; step < 8; ++step) {
+    previous = q;
+    q += Vec3(0.05, 0.04, 0.0);
+    const Neighbor nearest = TravellingNearest(tree, cloud.points, q, previous, cache);
+    EXPECT_EQ(nearest.index, brute_nearest(q)) << "step " << step;
+    travelled += cache.center == filled_at;
+  }
+  EXPECT_EQ(travelled, 8) << "a travelling query refilled its cache";
+  // Creeping: steps of a tenth of a spacing; the cache is refilled once, then answers.
+  int refills = 0;
+  for (int step = 0; step < 20; ++step) {
+    previous = q;
+    q += Vec3(0.1 * spacing, 0.0, 0.0);
+    const Vec3 before = cache.center;
+    EXPECT_EQ(TravellingNearest(tree, cloud.points, q, previous, cache).index, brute_nearest(q));
+    refills += cache.center != before;
+  }
+  EXPECT_GE(refills, 1);
+  EXPECT_LE(refills, 5);
+}
+
 TEST(TransformTest, ParsesRowMajorAndRejectsNonRigid) {
   auto ok = ParseTransform("0 -1 0 1, 1 0 0 2, 0 0 1 3, 0 0 0 1", "init");
   ASSERT_TRUE(ok.ok()) << ok.status();

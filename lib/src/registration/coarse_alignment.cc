@@ -47,7 +47,8 @@ class VoxelPlaneStep final : public IcpStep {
             SampleMatch& m = matches_[i];
             const Vec3 previous = m.x;
             m.x = pose * samples_[i];
-            const Neighbor nn = NearestVoxel(i, m.x, previous);
+            const Neighbor nn =
+                TravellingNearest(*target_.tree, target_.points, m.x, previous, nearest_[i]);
             m.kind = nn.distance_squared > capture_squared ? SampleMatch::kFar
                      : !target_.valid[nn.index]            ? SampleMatch::kInvalid
                                                            : SampleMatch::kMatched;
@@ -105,19 +106,6 @@ class VoxelPlaneStep final : public IcpStep {
     std::uint32_t voxel = 0;
     Kind kind = kFar;
   };
-
-  // The target voxel nearest sample i's position `x`. A sample whose last step moved it by more
-  // than half its cache's reach is still travelling (the first iterations of a large
-  // misalignment): its cache would miss and refill at every step, and a refill (the M nearest)
-  // costs more than the nearest alone, so it asks the tree for the nearest and leaves its cache
-  // for when it slows down. The answer is the tree's either way.
-  Neighbor NearestVoxel(std::size_t i, const Vec3& x, const Vec3& previous) {
-    NeighborCache<8>& cache = nearest_[i];
-    if (cache.reach > 0.0 && (x - previous).squaredNorm() > 0.25 * cache.reach * cache.reach) {
-      return target_.tree->Nearest(x);
-    }
-    return CachedNearest(*target_.tree, target_.points, x, cache);
-  }
 
   double d_;
   int threads_;

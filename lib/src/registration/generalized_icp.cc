@@ -104,12 +104,14 @@ class GicpStep final : public internal::IcpStep {
     const std::vector<Vec3>& target_points = target_.points();
     const std::size_t n = samples_.size();
     // The closest target point of every sample (through its cache: an iteration moves a sample
-    // by a fraction of the spacing, so the points nearest its last position usually answer).
+    // by a fraction of the spacing, so the points nearest its last position usually answer;
+    // TravellingNearest while it still travels).
     ParallelFor(n, threads_, [&](std::size_t begin, std::size_t end, int) {
       for (std::size_t i = begin; i < end; ++i) {
+        const Vec3 previous = pairs_[i].moved;
         pairs_[i].moved = pose * samples_[i];
-        const Neighbor nn =
-            CachedNearest(target_.tree(), target_points, pairs_[i].moved, nearest_caches_[i]);
+        const Neighbor nn = TravellingNearest(target_.tree(), target_points, pairs_[i].moved,
+                                              previous, nearest_caches_[i]);
         pairs_[i].target = nn.index;
         pairs_[i].distance_squared = nn.distance_squared;
       }
@@ -193,7 +195,7 @@ class GicpStep final : public internal::IcpStep {
   enum class Verdict : std::uint8_t { kInvalid, kTooFar, kMatched };
   // One sample's pair in the current iteration.
   struct Pair {
-    Vec3 moved;  // the sample under the current pose
+    Vec3 moved = Vec3::Zero();  // the sample under the current pose
     std::uint32_t target = 0;
     double distance_squared = 0.0;
     Verdict verdict = Verdict::kInvalid;

@@ -105,4 +105,18 @@ Neighbor CachedNearest(const KdTree& tree, const std::vector<Vec3>& points, cons
   return nearest;
 }
 
+// The nearest of `points` to `query`, a point that was at `previous` when it last asked: through
+// `cache` while it moves by less than half the cache's reach per question. A query still
+// travelling farther (the first iterations from a large misalignment) would miss its cache and
+// refill it, the M nearest, at every step; it asks the tree for the nearest alone instead and
+// leaves its cache for when it slows down. The answer is the tree's either way.
+template <int M>
+Neighbor TravellingNearest(const KdTree& tree, const std::vector<Vec3>& points, const Vec3& query,
+                           const Vec3& previous, NeighborCache<M>& cache) {
+  if (cache.reach > 0.0 && (query - previous).squaredNorm() > 0.25 * cache.reach * cache.reach) {
+    return tree.Nearest(query);
+  }
+  return CachedNearest(tree, points, query, cache);
+}
+
 }  // namespace mlsreg
