@@ -2,7 +2,7 @@
 // (libmlsreg_transport.so, built next to the program) that only the commands which talk to or
 // run a server load. A local command (register, verify, eval, align without --server) then
 // starts without mapping gRPC, protobuf and the forty libraries they bring: that start-up was
-// 5 ms of every one-shot process (`bench/process_start.py`).
+// about 6 ms of every one-shot process (`bench/process_start.py`: 11.2 -> 5.4 ms).
 #pragma once
 
 #include <memory>

@@ -109,7 +109,8 @@ Neighbor CachedNearest(const KdTree& tree, const std::vector<Vec3>& points, cons
 // `cache` while it moves by less than half the cache's reach per question. A query still
 // travelling farther (the first iterations from a large misalignment) would miss its cache and
 // refill it, the M nearest, at every step; it asks the tree for the nearest alone instead and
-// leaves its cache for when it slows down. The answer is the tree's either way.
+// leaves its cache for when it slows down. The answer is the nearest either way (on an exact tie
+// of distances the two paths may name different points).
 template <int M>
 Neighbor TravellingNearest(const KdTree& tree, const std::vector<Vec3>& points, const Vec3& query,
                            const Vec3& previous, NeighborCache<M>& cache) {
