@@ -611,6 +611,45 @@ TEST(AutoMethodTest, TheFinishFollowsTheNoiseAndPolishesTheVerifiedPose) {
   }
 }
 
+TEST(AutoMethodTest, TheMlsFinishMatchesAgainOnlyTheSamplesItsFirstIterationKept) {
+  // A noisy source reaching a sixth beyond the target: the MLS finish's first iteration finds
+  // no partner for the samples outside the overlap and refuses some by curvature; those are not
+  // matched again and keep their fates in every later count, so the counts always sum to the
+  // finish's samples, no later iteration matches more, and the pose is the truth's.
+  const double d =
+      Target::Build(SampleBumpySurface(20'000, -1.0, 1.0, 1)).value()->sampling_distance();
+  const double noise = 2.0 * d;
+  const Matrix4 truth = RandomPerturbation(8.0, 0.05, Vec3::Zero(), 5);
+  std::shared_ptr<const Target> target =
+      Target::Build(SampleBumpySurface(20'000, -1.0, 1.0, 1, noise)).value();
+  const PointCloud source =
+      Transformed(SampleBumpySurface(12'000, -0.9, 1.2, 2, noise), truth.inverse());
+  const Matrix4 start = RandomPerturbation(2.0, 2.0 * d, Vec3::Zero(), 6) * truth;
+  std::vector<IterationReport> finish_reports;
+  RegistrationCallbacks callbacks;
+  callbacks.on_iteration = [&](const IterationReport& r) {
+    if (r.stage == Stage::kFinish) finish_reports.push_back(r);
+  };
+  auto result = Register(*target, source, start, {}, callbacks);
+  ASSERT_TRUE(result.ok()) << result.status();
+  const FinishReport& finish = result->auto_report->finish;
+  ASSERT_EQ(finish.kind, FinishKind::kMls);
+  ASSERT_TRUE(finish.kept);
+  ASSERT_GE(finish_reports.size(), 3u);
+  const CorrespondenceCounts& first = finish_reports.front().counts;
+  EXPECT_GT(first.invalid, finish.samples / 10);  // the samples beyond the target
+  for (const IterationReport& r : finish_reports) {
+    SCOPED_TRACE(r.iteration);
+    EXPECT_EQ(r.counts.total(), finish.samples);
+    EXPECT_LE(r.counts.matched, first.matched);
+    EXPECT_GE(r.counts.invalid, first.invalid);
+    EXPECT_GE(r.counts.rejected_curvature, first.rejected_curvature);
+  }
+  const PoseError error = EvaluatePose(source.points, result->transform, truth, d);
+  EXPECT_LT(error.translation_d, 1.0);
+  EXPECT_LT(error.rotation_deg, 0.5);
+}
+
 // A stop requested in each stage ends the registration there: cancelled, with the report so far.
 TEST(AutoMethodTest, EveryStageCanBeCancelled) {
   const BunnyPair& bunny = Bunny();

@@ -384,6 +384,7 @@ class AutoRegistration {
     problem.options = &options;
     problem.callbacks = &callbacks;
     problem.iteration_offset = result.iterations;
+    problem.drop_first_rejections = true;
     absl::StatusOr<RegistrationResult> polished =
         finish.kind == FinishKind::kMls ? RunSparseIcp(problem) : RunPlaneToPlaneFinish(problem);
     if (!polished.ok()) return polished.status();

@@ -57,8 +57,9 @@ class SparseIcpStep final : public IcpStep {
  public:
   SparseIcpStep(std::vector<Vec3> samples, SurfaceProperties surface,
                 std::unique_ptr<CorrespondenceFinder> finder, const RegistrationOptions& options,
-                double d)
-      : samples_(std::move(samples)),
+                double d, bool drop_first_rejections)
+      : drop_first_rejections_(drop_first_rejections),
+        samples_(std::move(samples)),
         surface_(std::move(surface)),
         finder_(std::move(finder)),
         filters_(MakeFilters(options.filter, d, surface_.oriented, finder_->oriented_normals())),
@@ -82,6 +83,7 @@ class SparseIcpStep final : public IcpStep {
   }
 
   bool Match(const RigidTransform& pose, IterationReport& report) override {
+    if (drop_first_rejections_ && matched_once_ && !dropped_) DropRejected();
     const std::size_t m = samples_.size();
     for (std::size_t i = 0; i < m; ++i) {
       moved_[i] = pose * samples_[i];
@@ -91,6 +93,13 @@ class SparseIcpStep final : public IcpStep {
     const CorrespondenceFilter& filter = finder_->can_refine() ? filters_.coarse : filters_.fine;
     report.counts = filter.Apply(moved_, moved_normals_, surface_.curvature, surface_.valid,
                                  correspondences_, accepted_);
+    if (drop_first_rejections_ && !matched_once_) {
+      first_fates_.resize(m);
+      for (std::size_t i = 0; i < m; ++i) {
+        first_fates_[i] = filter.Judge(moved_[i], moved_normals_[i], surface_.curvature[i],
+                                       surface_.valid[i] != 0, correspondences_[i]);
+      }
+    }
     double sum_squared = 0.0;
     for (std::size_t i = 0; i < m; ++i) {
       partner_points_[i] = correspondences_[i].point;
@@ -98,6 +107,8 @@ class SparseIcpStep final : public IcpStep {
       if (accepted_[i]) sum_squared += (moved_[i] - partner_points_[i]).squaredNorm();
     }
     SetRmse(report, sum_squared, d_);
+    report.counts += dropped_counts_;
+    matched_once_ = true;
     return true;  // a Find stopped part-way is caught by the loop's own stop check
   }
 
@@ -118,6 +129,35 @@ class SparseIcpStep final : public IcpStep {
   }
 
  private:
+  // Keeps only the samples the first match accepted (drop_first_rejections); the others' fates
+  // go to dropped_counts_. The solver and the finder start their per-sample state afresh for
+  // the samples kept.
+  void DropRejected() {
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < samples_.size(); ++i) {
+      if (first_fates_[i] != PairFate::kMatched) {
+        dropped_counts_.Add(first_fates_[i]);
+        continue;
+      }
+      samples_[kept] = samples_[i];
+      surface_.normals[kept] = surface_.normals[i];
+      surface_.curvature[kept] = surface_.curvature[i];
+      surface_.valid[kept] = surface_.valid[i];
+      ++kept;
+    }
+    for (auto* v : {&samples_, &surface_.normals, &moved_, &moved_normals_, &partner_points_,
+                    &partner_normals_}) {
+      v->resize(kept);
+    }
+    surface_.curvature.resize(kept);
+    surface_.valid.resize(kept);
+    correspondences_.resize(kept);
+    accepted_.resize(kept);
+    solver_.Reset(kept);
+    first_fates_ = {};
+    dropped_ = true;
+  }
+
   // Grows the solver's unit to unit_per_residual_ median accepted residuals when that exceeds
   // the base unit (see RegistrationOptions::sicp_unit_per_residual).
   void AdaptLengthUnit() {
@@ -146,6 +186,10 @@ class SparseIcpStep final : public IcpStep {
                : 0.0;
   }
 
+  const bool drop_first_rejections_;
+  bool matched_once_ = false, dropped_ = false;
+  std::vector<PairFate> first_fates_;    // of the first match (drop_first_rejections_)
+  CorrespondenceCounts dropped_counts_;  // the fates of the samples dropped
   std::vector<Vec3> samples_;
   SurfaceProperties surface_;
   std::unique_ptr<CorrespondenceFinder> finder_;
@@ -272,7 +316,8 @@ absl::StatusOr<RegistrationResult> RunSparseIcp(const RegistrationProblem& probl
     return result;
   }
 
-  SparseIcpStep step(std::move(sampled.points), std::move(surface), std::move(finder), options, d);
+  SparseIcpStep step(std::move(sampled.points), std::move(surface), std::move(finder), options, d,
+                     problem.drop_first_rejections);
   LoopSettings settings;
   settings.rule = StopRule::kRecentPoses;
   settings.max_iterations = options.max_iterations;

@@ -28,6 +28,15 @@ struct CorrespondenceFilterOptions {
   bool target_oriented = false;
 };
 
+// What the filter made of one sample's correspondence, in the order it tests.
+enum class PairFate : std::uint8_t {
+  kInvalid,             // no usable partner (the finder's or the source's analysis failed)
+  kTooFar,              // beyond max_distance
+  kNormalsDisagree,     // normal angle beyond tau_N
+  kCurvaturesDisagree,  // surface variation ratio outside [tau_H, 1 / tau_H]
+  kMatched,
+};
+
 // What happened to one iteration's correspondences. Every sample lands in exactly one bucket.
 struct CorrespondenceCounts {
   int matched = 0;
@@ -39,6 +48,9 @@ struct CorrespondenceCounts {
   int total() const {
     return matched + rejected_normal + rejected_curvature + rejected_distance + invalid;
   }
+  // Counts one sample of that fate (`times` samples).
+  void Add(PairFate fate, int times = 1);
+  CorrespondenceCounts& operator+=(const CorrespondenceCounts& other);
 };
 
 class CorrespondenceFilter {
@@ -53,6 +65,11 @@ class CorrespondenceFilter {
                              std::span<const std::uint8_t> source_valid,
                              std::span<const Correspondence> correspondences,
                              std::span<std::uint8_t> accepted) const;
+
+  // The fate of one correspondence `c` of the sample at `point` (its normal and surface
+  // variation; `source_valid` false where the source analysis failed). Apply judges each.
+  PairFate Judge(const Vec3& point, const Vec3& normal, double curvature, bool source_valid,
+                 const Correspondence& c) const;
 
   const CorrespondenceFilterOptions& options() const { return options_; }
 
