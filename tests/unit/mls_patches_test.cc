@@ -253,37 +253,46 @@ TEST(MlsPatchesTest, AnchorCacheGivesTheSameProjectionsWithFewerTreeSearches) {
   EXPECT_LT(refills, steps / 2) << refills << " refills in " << steps << " steps";
 }
 
-TEST(MlsPatchesTest, TheNearestPatchLandsOnTheSurfaceWhereTheBlendDoes) {
-  // Queries up to 3 d off a paraboloid, which a cubic patch reproduces: the nearest anchor's
-  // patch alone puts them on the surface with its normal, as far from it as the blend does (the
-  // feet may differ along the surface), the same with or without a cache; a query beyond r of
-  // every anchor has none.
-  PointCloud cloud;
-  for (double x = -1; x <= 1; x += 0.02) {
-    for (double y = -1; y <= 1; y += 0.02) cloud.points.emplace_back(x, y, 0.5 * (x * x + y * y));
+TEST(MlsPatchesTest, AFootCacheKeepsBothBlendsCachedForQueriesOffTheSurface) {
+  // Queries 2-4 d off a sphere asking again from nearly the same place (steps of 0.05 d, as a
+  // verification's settling moves its samples): the blend around the query and the blend around
+  // its first estimate on the surface lie farther apart than one cache reaches, so one cache is
+  // refilled at nearly every projection; with a cache for each blend the refills stop after the
+  // first projection, and every projection is bit for bit the one without caches.
+  const PointCloud sphere = SampleSphere(8000, 1.0, -0.5, 35);
+  const KdTree tree(sphere.points);
+  const double d = SamplingDistance(sphere.points, tree), r = 5.0 * d;
+  const MlsPatches patches = BuildPatches(sphere, tree, r);
+  std::mt19937_64 rng(43);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::uniform_real_distribution<double> off(2.0, 4.0);
+  int one_cache_refills = 0, two_cache_refills = 0, steps = 0;
+  for (int query = 0; query < 40; ++query) {
+    const Vec3 dir = Vec3(g(rng), g(rng), std::abs(g(rng)) + 1.0).normalized();
+    Vec3 q = dir * (1.0 + (query % 2 == 0 ? 1.0 : -1.0) * off(rng) * d);
+    MlsPatches::AnchorCache single, around_query, around_foot;
+    for (int step = 0; step < 8; ++step, ++steps) {
+      q += 0.05 * d * Vec3(g(rng), g(rng), g(rng)).normalized();
+      const Vec3 single_before = single.center;
+      const Vec3 query_before = around_query.center, foot_before = around_foot.center;
+      const MlsProjection cold = patches.Project(q, false);
+      const MlsProjection one = patches.Project(q, false, &single);
+      const MlsProjection two = patches.Project(q, false, &around_query, &around_foot);
+      ASSERT_EQ(cold.status, ProjectionStatus::kOk);
+      ASSERT_EQ(two.status, cold.status);
+      EXPECT_EQ(two.point, cold.point) << "query " << query << " step " << step;
+      EXPECT_EQ(two.normal, cold.normal);
+      EXPECT_EQ(two.curvature, cold.curvature);
+      EXPECT_EQ(one.point, cold.point);
+      if (step == 0) continue;  // every cache starts empty
+      one_cache_refills += single.center != single_before;
+      two_cache_refills +=
+          (around_query.center != query_before) + (around_foot.center != foot_before);
+    }
   }
-  const KdTree tree(cloud.points);
-  const double d = SamplingDistance(cloud.points, tree);
-  const MlsPatches patches = BuildPatches(cloud, tree, 5.0 * d);
-  std::mt19937_64 rng(23);
-  std::uniform_real_distribution<double> u(-0.6, 0.6), off(-3.0, 3.0);
-  MlsPatches::AnchorCache cache;
-  for (int i = 0; i < 200; ++i) {
-    const double x = u(rng), y = u(rng);
-    const Vec3 on(x, y, 0.5 * (x * x + y * y));
-    const Vec3 query = on + off(rng) * d * Vec3(-x, -y, 1.0).normalized();
-    const MlsProjection p = patches.ProjectOnNearestPatch(query, &cache);
-    ASSERT_EQ(p.status, ProjectionStatus::kOk);
-    const double surface_z = 0.5 * (p.point.x() * p.point.x() + p.point.y() * p.point.y());
-    EXPECT_NEAR(p.point.z(), surface_z, 0.01 * d);
-    const Vec3 true_normal = Vec3(-p.point.x(), -p.point.y(), 1.0).normalized();
-    EXPECT_GT(std::abs(p.normal.dot(true_normal)), 0.9999);
-    const MlsProjection blended = patches.Project(query, true);
-    EXPECT_NEAR((query - p.point).norm(), (query - blended.point).norm(), 0.01 * d);
-    EXPECT_EQ(patches.ProjectOnNearestPatch(query).point, p.point);
-  }
-  EXPECT_EQ(patches.ProjectOnNearestPatch(Vec3(0.1, 0.1, 5.0)).status,
-            ProjectionStatus::kTooFewNeighbors);
+  EXPECT_GT(one_cache_refills, steps / 4) << one_cache_refills << " refills in " << steps;
+  EXPECT_LT(two_cache_refills, one_cache_refills / 4)
+      << two_cache_refills << " against " << one_cache_refills;
 }
 
 TEST(MlsPatchesTest, BuildIsCancellable) {

@@ -174,7 +174,7 @@ MlsPatches::Blend MlsPatches::BlendAt(const Vec3& query, const Vec3& near,
 }
 
 MlsProjection MlsPatches::Finish(const Vec3& query, const Vec3& near, bool seed_far_queries,
-                                 int blends, AnchorCache* cache) const {
+                                 int blends, AnchorCache* cache, AnchorCache* foot_cache) const {
   Blend blend = BlendAt(query, near, cache);
   if (!blend.ok || blend.nearest_distance > mls_.radius) {
     MlsProjection far;
@@ -195,7 +195,8 @@ MlsProjection MlsPatches::Finish(const Vec3& query, const Vec3& near, bool seed_
   if (blends > 1) {
     // Patches chosen around the first estimate, which lies on the surface: the right ones even
     // when the query is well off the surface.
-    const Blend refined = BlendAt(query, blend.projection.point, cache);
+    const Blend refined =
+        BlendAt(query, blend.projection.point, foot_cache != nullptr ? foot_cache : cache);
     if (refined.ok) {
       blend = refined;
       blend.projection.iterations = 2;
@@ -204,39 +205,14 @@ MlsProjection MlsPatches::Finish(const Vec3& query, const Vec3& near, bool seed_
   return blend.projection;
 }
 
-MlsProjection MlsPatches::Project(const Vec3& query, bool seed_far_queries,
-                                  AnchorCache* cache) const {
-  return Finish(query, query, seed_far_queries, 2, cache);
+MlsProjection MlsPatches::Project(const Vec3& query, bool seed_far_queries, AnchorCache* cache,
+                                  AnchorCache* foot_cache) const {
+  return Finish(query, query, seed_far_queries, 2, cache, foot_cache);
 }
 
 MlsProjection MlsPatches::ProjectNear(const Vec3& query, const Vec3& near, bool seed_far_queries,
                                       AnchorCache* cache) const {
-  return Finish(query, near, seed_far_queries, 1, cache);
-}
-
-MlsProjection MlsPatches::ProjectOnNearestPatch(const Vec3& query, AnchorCache* cache) const {
-  MlsProjection p;
-  p.status = ProjectionStatus::kTooFewNeighbors;
-  std::uint32_t index;
-  double distance_squared;
-  if (CachedKnn(*anchor_tree_, anchors_, query, 1, cache, &index, &distance_squared) == 0 ||
-      distance_squared > mls_.radius * mls_.radius) {
-    return p;
-  }
-  Patch patch;
-  if (!PatchAt(index, patch)) return p;
-  const double r = mls_.radius;
-  const Vec3 local = (query - patch.origin) / r;
-  const double x = local.dot(patch.u), y = local.dot(patch.v);
-  const HeightWithGradient h = EvaluateHeight(patch.coefficients, x, y);
-  p.point = patch.origin + r * (x * patch.u + y * patch.v + h.value * patch.n);
-  p.normal = (patch.n - h.dx * patch.u - h.dy * patch.v).normalized();
-  p.curvature = patch.surface_variation;
-  p.neighbors = 1;
-  p.iterations = 1;
-  p.status = p.point.allFinite() && p.normal.allFinite() ? ProjectionStatus::kOk
-                                                         : ProjectionStatus::kDegenerate;
-  return p;
+  return Finish(query, near, seed_far_queries, 1, cache, nullptr);
 }
 
 std::size_t MlsPatches::MemoryBytes() const {

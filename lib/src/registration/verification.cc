@@ -48,10 +48,7 @@ struct SampleHit {
   SurfaceHit hit;         // where it meets the surface (covered samples)
 };
 
-// The target's surface near `x`: the MLS patch of the anchor nearest `x` where the patches reach
-// (the local MLS fit there: the verdict measures distances to the surface, it does not follow
-// it, so the blend a registration needs for continuity, and the 4-6 patches it fits, are not
-// needed; the registrations' own patches serve); else the plane
+// The target's surface near `x`: its MLS projection where the patches reach; else the plane
 // through the centroid of its kSurfaceNeighbors samples nearest `x` (noise averages out over
 // them, where the nearest sample alone is biased toward `x`), with their normal when they span a
 // plane and their voxel's otherwise (on a LiDAR's far rings the nearest samples lie along one
@@ -67,7 +64,8 @@ SurfaceHit HitSurface(const Target& target, const Vec3& x, std::uint32_t voxel,
     hit.local_noise = voxels.spread[voxel];
   }
   if (const MlsPatches* patches = target.mls_patches(); patches != nullptr) {
-    const MlsProjection p = patches->ProjectOnNearestPatch(x, &caches.anchors);
+    const MlsProjection p =
+        patches->Project(x, /*seed_far_queries=*/false, &caches.anchors, &caches.foot_anchors);
     if (p.status == ProjectionStatus::kOk) {
       hit.normal = p.normal;
       hit.across = (x - p.point).dot(p.normal);

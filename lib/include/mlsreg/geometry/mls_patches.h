@@ -71,21 +71,17 @@ class MlsPatches {
   // anchor is replaced by its nearest target sample (seeded_from_nearest_sample); otherwise it
   // fails with kTooFewNeighbors. Thread-safe; allocation-free once the patches it blends are
   // fitted. With `cache` (the query's AnchorCache), the anchors come from it where they can: the
-  // result is the same, bit for bit, with or without it.
-  MlsProjection Project(const Vec3& query, bool seed_far_queries,
-                        AnchorCache* cache = nullptr) const;
+  // result is the same, bit for bit, with or without it. The second blend, around the first
+  // estimate on the surface, uses `foot_cache` when given (else `cache`): a query that asks
+  // again from nearly the same place (a verification's settling) then finds both blends' anchors
+  // in their caches, where one cache would be refilled at both points whenever the query lies
+  // farther from the surface than the cache reaches.
+  MlsProjection Project(const Vec3& query, bool seed_far_queries, AnchorCache* cache = nullptr,
+                        AnchorCache* foot_cache = nullptr) const;
   // The same, with the patches chosen around `near`, a point already close to the surface (a
   // warm start: the query on its previous projection's tangent plane). One blend instead of two.
   MlsProjection ProjectNear(const Vec3& query, const Vec3& near, bool seed_far_queries,
                             AnchorCache* cache = nullptr) const;
-
-  // The query projected onto the one patch whose anchor lies nearest it, without a blend: the
-  // local MLS surface there (within h of its anchor, where the fit of radius r = 2 h holds),
-  // for measuring a distance to the surface rather than for following it, since it jumps where
-  // the nearest anchor changes. One patch to fit instead of the 4-6 that a blend's two rounds
-  // touch. kTooFewNeighbors beyond r of every anchor or where that anchor's fit failed;
-  // thread-safe, and the same with or without `cache`.
-  MlsProjection ProjectOnNearestPatch(const Vec3& query, AnchorCache* cache = nullptr) const;
 
   double radius() const { return mls_.radius; }
   int polynomial_degree() const { return mls_.polynomial_degree; }
@@ -125,7 +121,7 @@ class MlsPatches {
   bool PatchAt(std::size_t i, Patch& out) const;
   Blend BlendAt(const Vec3& query, const Vec3& near, AnchorCache* cache = nullptr) const;
   MlsProjection Finish(const Vec3& query, const Vec3& near, bool seed_far_queries, int blends,
-                       AnchorCache* cache) const;
+                       AnchorCache* cache, AnchorCache* foot_cache) const;
 
   const std::vector<Vec3>* points_;
   const KdTree* tree_;
