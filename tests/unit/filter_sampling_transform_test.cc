@@ -74,6 +74,20 @@ TEST(CorrespondenceFilterTest, RejectsEachReasonAndCountsIt) {
   EXPECT_EQ(counts.rejected_curvature, 1);
   EXPECT_EQ(counts.total(), 6);
   EXPECT_EQ(accepted, (std::vector<std::uint8_t>{1, 0, 0, 1, 0, 0}));
+  // Each sample's fate, and the counts rebuilt from the fates.
+  std::vector<PairFate> fates(6);
+  filter.Apply(points, normals, h, valid, c, accepted, fates);
+  EXPECT_EQ(fates, (std::vector<PairFate>{PairFate::kMatched, PairFate::kInvalid, PairFate::kTooFar,
+                                          PairFate::kMatched, PairFate::kNormalsDisagree,
+                                          PairFate::kCurvaturesDisagree}));
+  CorrespondenceCounts rebuilt;
+  for (PairFate fate : fates) rebuilt.Add(fate);
+  rebuilt += rebuilt;
+  EXPECT_EQ(rebuilt.matched, 4);
+  EXPECT_EQ(rebuilt.invalid, 2);
+  EXPECT_EQ(rebuilt.rejected_distance, 2);
+  EXPECT_EQ(rebuilt.rejected_normal, 2);
+  EXPECT_EQ(rebuilt.rejected_curvature, 2);
 }
 
 TEST(CorrespondenceFilterTest, NormalSignMattersOnlyWhenBothSidesAreOriented) {

@@ -45,17 +45,16 @@ PairFate CorrespondenceFilter::Judge(const Vec3& point, const Vec3& normal, doub
   return PairFate::kMatched;
 }
 
-CorrespondenceCounts CorrespondenceFilter::Apply(std::span<const Vec3> points,
-                                                 std::span<const Vec3> normals,
-                                                 std::span<const double> curvature,
-                                                 std::span<const std::uint8_t> source_valid,
-                                                 std::span<const Correspondence> correspondences,
-                                                 std::span<std::uint8_t> accepted) const {
+CorrespondenceCounts CorrespondenceFilter::Apply(
+    std::span<const Vec3> points, std::span<const Vec3> normals, std::span<const double> curvature,
+    std::span<const std::uint8_t> source_valid, std::span<const Correspondence> correspondences,
+    std::span<std::uint8_t> accepted, std::span<PairFate> fates) const {
   CorrespondenceCounts counts;
   for (std::size_t i = 0; i < correspondences.size(); ++i) {
     const PairFate fate =
         Judge(points[i], normals[i], curvature[i], source_valid[i] != 0, correspondences[i]);
     accepted[i] = fate == PairFate::kMatched;
+    if (!fates.empty()) fates[i] = fate;
     counts.Add(fate);
   }
   return counts;

@@ -91,15 +91,11 @@ class SparseIcpStep final : public IcpStep {
     }
     finder_->Find(moved_, correspondences_);
     const CorrespondenceFilter& filter = finder_->can_refine() ? filters_.coarse : filters_.fine;
-    report.counts = filter.Apply(moved_, moved_normals_, surface_.curvature, surface_.valid,
-                                 correspondences_, accepted_);
-    if (drop_first_rejections_ && !matched_once_) {
-      first_fates_.resize(m);
-      for (std::size_t i = 0; i < m; ++i) {
-        first_fates_[i] = filter.Judge(moved_[i], moved_normals_[i], surface_.curvature[i],
-                                       surface_.valid[i] != 0, correspondences_[i]);
-      }
-    }
+    const bool record_fates = drop_first_rejections_ && !matched_once_;
+    if (record_fates) first_fates_.resize(m);
+    report.counts = filter.Apply(
+        moved_, moved_normals_, surface_.curvature, surface_.valid, correspondences_, accepted_,
+        record_fates ? std::span<PairFate>(first_fates_) : std::span<PairFate>());
     double sum_squared = 0.0;
     for (std::size_t i = 0; i < m; ++i) {
       partner_points_[i] = correspondences_[i].point;

@@ -59,12 +59,14 @@ class CorrespondenceFilter {
 
   // `points`, `normals`, `curvature`: the current (transformed) source samples, their normals
   // (rotated likewise) and surface variations; `source_valid[i]` is 0 where the source analysis
-  // failed (counted as invalid). Writes accepted[i] = 1 for kept correspondences.
+  // failed (counted as invalid). Writes accepted[i] = 1 for kept correspondences, and each
+  // one's fate into `fates` when that is not empty.
   CorrespondenceCounts Apply(std::span<const Vec3> points, std::span<const Vec3> normals,
                              std::span<const double> curvature,
                              std::span<const std::uint8_t> source_valid,
                              std::span<const Correspondence> correspondences,
-                             std::span<std::uint8_t> accepted) const;
+                             std::span<std::uint8_t> accepted,
+                             std::span<PairFate> fates = {}) const;
 
   // The fate of one correspondence `c` of the sample at `point` (its normal and surface
   // variation; `source_valid` false where the source analysis failed). Apply judges each.
