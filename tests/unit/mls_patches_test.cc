@@ -34,6 +34,20 @@ MlsPatches BuildPatches(const PointCloud& cloud, const KdTree& tree, double radi
   return *std::move(patches);
 }
 
+// A sampled unit sphere (z > -0.5) with its index, spacing d and patches of radius r = 5 d.
+struct SphereWithPatches {
+  explicit SphereWithPatches(std::uint64_t seed)
+      : sphere(SampleSphere(8000, 1.0, -0.5, seed)),
+        tree(sphere.points),
+        d(SamplingDistance(sphere.points, tree)),
+        r(5.0 * d),
+        patches(BuildPatches(sphere, tree, r)) {}
+  const PointCloud sphere;
+  const KdTree tree;
+  const double d, r;
+  const MlsPatches patches;
+};
+
 TEST(MlsPatchesTest, ReproducesAPlaneExactly) {
   const PointCloud plane = SamplePlaneGrid(1.0, 0.05, 0.02, 7);
   const KdTree tree(plane.points);
@@ -225,10 +239,9 @@ TEST(MlsPatchesTest, AnchorCacheGivesTheSameProjectionsWithFewerTreeSearches) {
   // Queries on random walks near a noisy sphere, as ICP moves a source point (steps of 0.2 d),
   // with a jump of 3 r now and then: with a cache per query the projections are bit for bit
   // those without, and the cache is refilled (its centre moves) at a small share of the steps.
-  const PointCloud sphere = SampleSphere(8000, 1.0, -0.5, 33);
-  const KdTree tree(sphere.points);
-  const double d = SamplingDistance(sphere.points, tree), r = 5.0 * d;
-  const MlsPatches patches = BuildPatches(sphere, tree, r);
+  const SphereWithPatches s(33);
+  const double d = s.d, r = s.r;
+  const MlsPatches& patches = s.patches;
   std::mt19937_64 rng(41);
   std::normal_distribution<double> g(0.0, 1.0);
   int steps = 0, refills = 0;
@@ -259,10 +272,9 @@ TEST(MlsPatchesTest, AFootCacheKeepsBothBlendsCachedForQueriesOffTheSurface) {
   // its first estimate on the surface lie farther apart than one cache reaches, so one cache is
   // refilled at nearly every projection; with a cache for each blend the refills stop after the
   // first projection, and every projection is bit for bit the one without caches.
-  const PointCloud sphere = SampleSphere(8000, 1.0, -0.5, 35);
-  const KdTree tree(sphere.points);
-  const double d = SamplingDistance(sphere.points, tree), r = 5.0 * d;
-  const MlsPatches patches = BuildPatches(sphere, tree, r);
+  const SphereWithPatches s(35);
+  const double d = s.d;
+  const MlsPatches& patches = s.patches;
   std::mt19937_64 rng(43);
   std::normal_distribution<double> g(0.0, 1.0);
   std::uniform_real_distribution<double> off(2.0, 4.0);

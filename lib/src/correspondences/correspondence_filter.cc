@@ -5,13 +5,13 @@
 
 namespace mlsreg {
 
-void CorrespondenceCounts::Add(PairFate fate, int times) {
+void CorrespondenceCounts::Add(PairFate fate) {
   // Each fate's bucket, in PairFate's order.
   static constexpr int CorrespondenceCounts::*kBucket[] = {
       &CorrespondenceCounts::invalid, &CorrespondenceCounts::rejected_distance,
       &CorrespondenceCounts::rejected_normal, &CorrespondenceCounts::rejected_curvature,
       &CorrespondenceCounts::matched};
-  this->*kBucket[static_cast<std::size_t>(fate)] += times;
+  ++(this->*kBucket[static_cast<std::size_t>(fate)]);
 }
 
 CorrespondenceCounts& CorrespondenceCounts::operator+=(const CorrespondenceCounts& other) {

@@ -48,8 +48,8 @@ struct CorrespondenceCounts {
   int total() const {
     return matched + rejected_normal + rejected_curvature + rejected_distance + invalid;
   }
-  // Counts one sample of that fate (`times` samples).
-  void Add(PairFate fate, int times = 1);
+  // Counts one sample of that fate.
+  void Add(PairFate fate);
   CorrespondenceCounts& operator+=(const CorrespondenceCounts& other);
 };
 
