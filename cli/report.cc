@@ -43,8 +43,8 @@ std::string FormatIteration(const IterationReport& r) {
     return absl::StrFormat("[global] %d feature matches, candidates found  %7.3f s",
                            r.counts.matched, r.elapsed_seconds);
   }
-  if (r.stage == Stage::kCandidate) {
-    stage = absl::StrFormat("[candidate %d] ", r.candidate);
+  if (r.stage == Stage::kCandidate || r.stage == Stage::kRival) {
+    stage = absl::StrFormat("[%s %d] ", StageName(r.stage), r.candidate);
   } else if (r.stage != Stage::kSingle) {
     stage = absl::StrFormat("[%s] ", StageName(r.stage));
   }
@@ -104,9 +104,9 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
                            a->early_exit ? " (the start verified: no global stage)" : "");
     out += absl::StrFormat(
         "auto stages: start %.3f s, global %.3f s (%d feature matches), candidates %.3f s, final "
-        "%.3f s\n",
+        "%.3f s, rival search %.3f s\n",
         a->timings.start, a->timings.global, a->feature_matches, a->timings.candidates,
-        a->timings.final);
+        a->timings.final, a->timings.rivals);
     for (std::size_t k = 0; k < a->candidates.size(); ++k) {
       const AutoCandidate& c = a->candidates[k];
       out += absl::StrFormat(
@@ -115,7 +115,9 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
           k, CandidateOriginName(c.origin),
           c.in_start_basin ? std::string_view("start's basin") : VerdictName(c.score.verdict),
           100.0 * c.score.inlier_fraction, c.score.rmse_d, c.iterations, c.seconds,
-          static_cast<int>(k) == a->chosen ? "  <- chosen" : "");
+          static_cast<int>(k) == a->chosen               ? "  <- chosen"
+          : a->rival && static_cast<int>(k) == *a->rival ? "  <- rival: explains as much elsewhere"
+                                                         : "");
     }
     out += FinishLine(a->finish, a->verified, result.sampling_distance);
   }
@@ -269,7 +271,9 @@ nlohmann::json ResultJson(std::string_view method, const RegistrationResult& res
                   {{"start", a->timings.start},
                    {"global", a->timings.global},
                    {"candidates", a->timings.candidates},
-                   {"final", a->timings.final}}},
+                   {"final", a->timings.final},
+                   {"rivals", a->timings.rivals}}},
+                 {"rival", a->rival ? nlohmann::json(*a->rival) : nlohmann::json(nullptr)},
                  {"finish",
                   {{"kind", std::string(FinishKindName(a->finish.kind))},
                    {"noise_d", a->finish.noise_d},

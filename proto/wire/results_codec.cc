@@ -98,6 +98,8 @@ void AutoReportToProto(const AutoReport& r, v1::AutoReport* out) {
   out->set_global_seconds(r.timings.global);
   out->set_candidates_seconds(r.timings.candidates);
   out->set_final_seconds(r.timings.final);
+  out->set_rivals_seconds(r.timings.rivals);
+  if (r.rival) out->set_rival(*r.rival);
   v1::FinishReport* finish = out->mutable_finish();
   finish->set_kind(
       static_cast<v1::FinishKind>(EnumToWire(FinishKindNames(), static_cast<int>(r.finish.kind))));
@@ -131,7 +133,9 @@ AutoReport AutoReportFromProto(const v1::AutoReport& p) {
   r.verification = FromProto(p.verification());
   r.early_exit = p.early_exit();
   r.feature_matches = p.feature_matches();
-  r.timings = {p.start_seconds(), p.global_seconds(), p.candidates_seconds(), p.final_seconds()};
+  r.timings = {p.start_seconds(), p.global_seconds(), p.candidates_seconds(), p.final_seconds(),
+               p.rivals_seconds()};
+  if (p.has_rival()) r.rival = p.rival();
   const v1::FinishReport& finish = p.finish();
   r.finish.kind = EnumFromWire(FinishKindNames(), finish.kind(), FinishKind::kNone, "finish.kind")
                       .value_or(FinishKind::kNone);

@@ -91,15 +91,18 @@ py::dict AutoToPython(const AutoReport& report) {
                         py::arg("samples") = f.samples, py::arg("iterations") = f.iterations,
                         py::arg("kept") = f.kept, py::arg("moved") = f.moved,
                         py::arg("contradicted") = f.contradicted, py::arg("seconds") = f.seconds);
-  return py::dict(py::arg("candidates") = candidates, py::arg("chosen") = report.chosen,
-                  py::arg("verified") = report.verified,
-                  py::arg("verification") = ScoreToPython(report.verification),
-                  py::arg("early_exit") = report.early_exit,
-                  py::arg("feature_matches") = report.feature_matches,
-                  py::arg("timings") =
-                      py::dict(py::arg("start") = t.start, py::arg("global") = t.global,
-                               py::arg("candidates") = t.candidates, py::arg("final") = t.final),
-                  py::arg("finish") = finish);
+  return py::dict(
+      py::arg("candidates") = candidates, py::arg("chosen") = report.chosen,
+      py::arg("verified") = report.verified,
+      py::arg("verification") = ScoreToPython(report.verification),
+      py::arg("early_exit") = report.early_exit,
+      py::arg("feature_matches") = report.feature_matches,
+      py::arg("timings") = py::dict(py::arg("start") = t.start, py::arg("global") = t.global,
+                                    py::arg("candidates") = t.candidates,
+                                    py::arg("final") = t.final, py::arg("rivals") = t.rivals),
+      py::arg("finish") = finish,
+      py::arg("rival") =
+          report.rival ? py::object(py::int_(*report.rival)) : py::object(py::none()));
 }
 
 }  // namespace

@@ -441,7 +441,7 @@ TEST(AutoMethodTest, TheFinishPolishesVerifiedAndPulledResultsOnly) {
   for (const Verdict verdict :
        {Verdict::kVerified, Verdict::kTooLittleOverlap, Verdict::kLowAgreement,
         Verdict::kDiffuseResiduals, Verdict::kDirectionDisagrees, Verdict::kUnconstrained,
-        Verdict::kPulled, Verdict::kCoherentResiduals}) {
+        Verdict::kPulled, Verdict::kCoherentResiduals, Verdict::kAmbiguous}) {
     SCOPED_TRACE(std::string(VerdictName(verdict)));
     EXPECT_EQ(FinishPolishes(verdict),
               verdict == Verdict::kVerified || verdict == Verdict::kPulled);
@@ -562,6 +562,96 @@ TEST(AutoMethodTest, AnotherObjectIsNotVerified) {
   EXPECT_GT(direct.iterations, 0);
   EXPECT_FALSE(direct.score.verified());
   EXPECT_EQ(result->auto_report->chosen, 0);
+}
+
+// A corridor from x = -`half_length` to `half_length`: a floor between two walls 4 m apart, and
+// pillars against one wall at `pillars` (x). Only the pillars' faces fix the position along it.
+PointCloud Corridor(const std::vector<double>& pillars, double half_length, double noise,
+                    std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> gauss(0.0, noise);
+  PointCloud corridor;
+  const double step = 0.1;
+  for (double x = -half_length; x <= half_length; x += step) {
+    for (double y = -2.0; y <= 2.0; y += step) corridor.points.emplace_back(x, y, gauss(rng));
+    for (double z = 0.0; z <= 3.0; z += step) {
+      corridor.points.emplace_back(x, -2.0 + gauss(rng), z);
+      corridor.points.emplace_back(x, 2.0 + gauss(rng), z);
+    }
+  }
+  for (const double px : pillars) {  // 0.6 m wide, 0.3 m deep, 1.5 m tall
+    if (std::abs(px) > half_length) continue;
+    for (double z = 0.0; z <= 1.5; z += step) {
+      for (double t = 0.0; t <= 0.3; t += step / 2) {
+        corridor.points.emplace_back(px - 0.3 + gauss(rng), 1.7 + t, z);
+        corridor.points.emplace_back(px + 0.3 + gauss(rng), 1.7 + t, z);
+      }
+      for (double t = -0.3; t <= 0.3; t += step / 2) {
+        corridor.points.emplace_back(px + t, 1.7 + gauss(rng), z);
+      }
+    }
+  }
+  return corridor;
+}
+
+// Pillars every 2 m, and a scan of the corridor's middle 30 m: the pose slid by one period
+// explains the scan as well as the truth does. From the truth, the result verifies on its own,
+// but the rival search finds the other pose and the result is ambiguous, not verified.
+TEST(AutoMethodTest, APoseAmongRepeatedPillarsHasARivalAndIsAmbiguous) {
+  std::vector<double> pillars;
+  for (double x = -18.0; x <= 18.0; x += 2.0) pillars.push_back(x);
+  auto target = Target::Build(Corridor(pillars, 20.0, 0.01, 1)).value();
+  const PointCloud source = Corridor(pillars, 15.0, 0.01, 2);
+  auto result = Register(*target, source, Matrix4::Identity(), {});
+  ASSERT_TRUE(result.ok()) << result.status();
+  const AutoReport& report = result->auto_report.value();
+  EXPECT_LT(result->transform.col(3).head<3>().norm(), 0.05);  // the truth, kept
+  EXPECT_EQ(report.verification.verdict, Verdict::kAmbiguous);
+  EXPECT_FALSE(report.verified);
+  ASSERT_TRUE(report.rival.has_value());
+  const AutoCandidate& rival = report.candidates.at(*report.rival);
+  EXPECT_EQ(rival.origin, CandidateOrigin::kRival);
+  // One period along the corridor, either way, explaining about as much.
+  EXPECT_NEAR(std::abs(rival.refined(0, 3)), 2.0, 0.2) << rival.refined;
+  EXPECT_GT(rival.score.inliers, 0.95 * report.verification.inliers);
+  EXPECT_GT(report.timings.rivals, 0.0);
+}
+
+// A stop requested during the rival search ends the registration cancelled, not verified.
+TEST(AutoMethodTest, TheRivalSearchCanBeCancelled) {
+  std::vector<double> pillars;
+  for (double x = -18.0; x <= 18.0; x += 2.0) pillars.push_back(x);
+  auto target = Target::Build(Corridor(pillars, 20.0, 0.01, 1)).value();
+  bool stop = false;
+  RegistrationCallbacks callbacks;
+  callbacks.on_iteration = [&](const IterationReport& r) {
+    stop = stop || r.stage == Stage::kRival;
+  };
+  callbacks.should_stop = [&] { return stop; };
+  auto result =
+      Register(*target, Corridor(pillars, 15.0, 0.01, 2), Matrix4::Identity(), {}, callbacks);
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_TRUE(stop);
+  EXPECT_EQ(result->termination, Termination::kCancelled);
+  EXPECT_FALSE(result->auto_report->verified);
+}
+
+// Pillars at irregular spacing, the same scan: the probes along the corridor come back to the
+// truth or end at poses that explain clearly less, and the result verifies.
+TEST(AutoMethodTest, PillarsThatDoNotRepeatLeaveNoRival) {
+  const std::vector<double> pillars = {-17.0, -12.2, -9.6, -4.1, -1.3, 1.4, 6.8, 9.6, 13.9, 17.5};
+  auto target = Target::Build(Corridor(pillars, 20.0, 0.01, 1)).value();
+  auto result = Register(*target, Corridor(pillars, 15.0, 0.01, 2), Matrix4::Identity(), {});
+  ASSERT_TRUE(result.ok()) << result.status();
+  const AutoReport& report = result->auto_report.value();
+  EXPECT_TRUE(report.verified) << VerdictName(report.verification.verdict);
+  EXPECT_FALSE(report.rival.has_value());
+  // The search ran: the pose rests on the pillars' few samples along x.
+  const auto probes =
+      std::count_if(report.candidates.begin(), report.candidates.end(),
+                    [](const AutoCandidate& c) { return c.origin == CandidateOrigin::kRival; });
+  EXPECT_EQ(probes, 4);
+  EXPECT_LT(result->transform.col(3).head<3>().norm(), 0.05);
 }
 
 // The finish follows the clouds' measured noise (registration/finish.h): plane-to-plane on clean

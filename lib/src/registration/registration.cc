@@ -38,6 +38,7 @@ const EnumNames& StageNames() {
       {static_cast<int>(Stage::kFinal), "final", "FINAL"},
       {static_cast<int>(Stage::kCoarse), "coarse", "COARSE"},
       {static_cast<int>(Stage::kFinish), "finish", "FINISH"},
+      {static_cast<int>(Stage::kRival), "rival", "RIVAL"},
   };
   static constexpr EnumNames kNames{"Stage", "STAGE_", kValues};
   return kNames;
@@ -50,6 +51,7 @@ const EnumNames& CandidateOriginNames() {
       {static_cast<int>(CandidateOrigin::kStart), "start", "START"},
       {static_cast<int>(CandidateOrigin::kGlobal), "global", "GLOBAL"},
       {static_cast<int>(CandidateOrigin::kDirect), "direct", "DIRECT"},
+      {static_cast<int>(CandidateOrigin::kRival), "rival", "RIVAL"},
   };
   static constexpr EnumNames kNames{"CandidateOrigin", "CANDIDATE_ORIGIN_", kValues};
   return kNames;

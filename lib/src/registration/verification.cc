@@ -1,6 +1,7 @@
 #include "mlsreg/registration/verification.h"
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -350,6 +351,7 @@ const EnumNames& VerdictNames() {
       {static_cast<int>(Verdict::kUnconstrained), "unconstrained", "UNCONSTRAINED"},
       {static_cast<int>(Verdict::kPulled), "pulled", "PULLED"},
       {static_cast<int>(Verdict::kCoherentResiduals), "coherent_residuals", "COHERENT_RESIDUALS"},
+      {static_cast<int>(Verdict::kAmbiguous), "ambiguous", "AMBIGUOUS"},
   };
   static constexpr EnumNames kNames{"Verdict", "VERDICT_", kValues};
   return kNames;
@@ -446,6 +448,8 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
     if (state[i]) radius_squared += (pose * points[i] - centre).squaredNorm();
   }
   const double lever = score.covered > 0 ? std::sqrt(radius_squared / score.covered) : 1.0;
+  score.direction_centre = centre;
+  score.direction_lever = lever;
   const Vector6 pull_step = MeasurePull(pulls, centre, lever, score);
   score.coherent_residual =
       CoherentResidual(pulls, 2.0 * voxels.voxel, centre, lever, pull_step, threads);
@@ -575,6 +579,19 @@ VerificationScore VerifyPose(const Target& target, const PointCloud& source,
   const NoiseEstimate noise =
       EstimateNoise(source.points, tree, target.sampling_distance(), {}, {}, {}, threads);
   return VerifyPose(target, source, transform, noise.sigma_d, threads);
+}
+
+Matrix4 MovedAlongWorstDirection(const VerificationScore& score, const Matrix4& transform,
+                                 double distance) {
+  const Vector6 step = distance * score.worst_direction.normalized();
+  const Vec3 omega = step.head<3>() / score.direction_lever;
+  Matrix4 motion = Matrix4::Identity();
+  if (omega.norm() > 0.0) {
+    motion.topLeftCorner<3, 3>() = Eigen::AngleAxisd(omega.norm(), omega.normalized()).matrix();
+  }
+  const Vec3& c = score.direction_centre;
+  motion.topRightCorner<3, 1>() = c - motion.topLeftCorner<3, 3>() * c + step.tail<3>();
+  return motion * transform;
 }
 
 bool PulledBySettling(VerificationScore& score, double displacement, double median_spacing,

@@ -24,8 +24,9 @@ enum class Stage {
   kFinal,      // auto: the full refinement of the best candidate
   kCoarse,     // auto: voxel clouds aligned at the working resolution (registration/scales.h)
   kFinish,     // auto: the chosen pose polished over every source point (registration/finish.h)
+  kRival,  // auto: the voxel clouds aligned again from the verified pose moved (AutoReport::rival)
 };
-// "single", "start", "global", "candidate", "final", "coarse", "finish"
+// "single", "start", "global", "candidate", "final", "coarse", "finish", "rival"
 std::string_view StageName(Stage stage);
 const EnumNames& StageNames();  // wire enum "Stage"
 
@@ -68,9 +69,13 @@ enum class CandidateOrigin {
   // The caller's initial pose refined by MLS-SICP alone, without the voxel stage: tried last,
   // when nothing else verified.
   kDirect,
+  // The verified result moved along its weakest direction and aligned again on the voxel clouds:
+  // a search for another pose that explains the source as well (AutoReport::rival).
+  kRival,
 };
-std::string_view CandidateOriginName(CandidateOrigin origin);  // "start", "global", "direct"
-const EnumNames& CandidateOriginNames();                       // wire enum "CandidateOrigin"
+// "start", "global", "direct", "rival"
+std::string_view CandidateOriginName(CandidateOrigin origin);
+const EnumNames& CandidateOriginNames();  // wire enum "CandidateOrigin"
 
 struct AutoCandidate {
   CandidateOrigin origin = CandidateOrigin::kStart;
@@ -91,6 +96,7 @@ struct AutoStageTimings {
   double global = 0.0;      // source features, matching, RANSAC
   double candidates = 0.0;  // cheap refinements and their verification
   double final = 0.0;       // the full refinement of the winner
+  double rivals = 0.0;      // the search for a rival of the verified result
 };
 
 // Method auto's finish (registration/finish.h): how the chosen pose was polished.
@@ -131,6 +137,11 @@ struct AutoReport {
   int feature_matches = 0;         // matches the global stage drew from
   AutoStageTimings timings;
   FinishReport finish;
+  // The candidate (origin kRival) at another pose that explains as many of the source's samples
+  // as the verified result: the result is then `ambiguous`, not verified. None when no rival was
+  // found, or none was searched for (the result did not verify, or every direction of motion is
+  // fixed by a large share of the overlap).
+  std::optional<int> rival;
 };
 
 // The lengths a registration worked at, all chosen from the data (absolute units, those of the

@@ -100,6 +100,9 @@ enum class Verdict {
   kPulled,         // one small rigid motion would remove much of the residuals
   // Neighbouring samples share their residuals: the surfaces differ in shape (another object).
   kCoherentResiduals,
+  // The pose passes every test above, but another pose along its weakest direction explains as
+  // many samples (method auto's rival search: a corridor whose doors and pillars repeat).
+  kAmbiguous,
 };
 std::string_view VerdictName(Verdict verdict);  // "verified", "too_little_overlap", ...
 const EnumNames& VerdictNames();                // wire enum "Verdict"
@@ -140,6 +143,10 @@ struct VerificationScore {
   int worst_direction_samples = 0;
   double worst_direction_fraction = 0.0;
   Eigen::Matrix<double, 6, 1> worst_direction = Eigen::Matrix<double, 6, 1>::Zero();
+  // The frame of worst_direction: the covered samples' centre (in the target's frame) and their
+  // RMS distance from it (the lever that turns a rotation into a displacement).
+  Vec3 direction_centre = Vec3::Zero();
+  double direction_lever = 1.0;
   // The agreeing samples' median angle between their normal and the target's, and the covered
   // samples left out of the directional test as sitting on sharp edges (see feature_angle_*).
   double normal_angle_median_deg = 0.0;
@@ -199,6 +206,12 @@ VerificationScore VerifyPose(const Target& target, const PointCloud& source,
 // of the band, at least min_band_spacings of `median_spacing`) the pose is not there. Then the
 // score becomes `pulled` with that displacement as its settling, and true is returned; otherwise
 // it is left as it is.
+// `transform` followed by a motion along `score`'s worst direction that moves the covered samples
+// by about `distance` (a translation moves each by exactly that; a rotation about the samples'
+// centre moves them by that at their RMS radius).
+Matrix4 MovedAlongWorstDirection(const VerificationScore& score, const Matrix4& transform,
+                                 double distance);
+
 bool PulledBySettling(VerificationScore& score, double displacement, double median_spacing,
                       const VerificationOptions& options = {});
 
