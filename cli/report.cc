@@ -2,6 +2,8 @@
 
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 #include "absl/strings/str_format.h"
@@ -36,6 +38,22 @@ std::string FinishLine(const FinishReport& f, bool verified, double d) {
                        : "not kept (did not verify; the refined pose is returned)");
 }
 }  // namespace
+
+// Where auto's rival lies against the result, and how much of the source it explains.
+std::string RivalLine(const AutoReport& a, const Matrix4& result) {
+  const AutoCandidate& rival = a.candidates.at(*a.rival);
+  const Eigen::Matrix3d turn =
+      result.topLeftCorner<3, 3>().transpose() * rival.refined.topLeftCorner<3, 3>();
+  const double angle_deg =
+      std::acos(std::clamp((turn.trace() - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / M_PI;
+  const double shift = (rival.refined.col(3) - result.col(3)).head<3>().norm();
+  const double share =
+      a.verification.inliers > 0 ? double(rival.score.inliers) / a.verification.inliers : 0.0;
+  return absl::StrFormat(
+      "auto rival: candidate %d, %.4g away (turned %.3g deg), explains %.1f %% as many samples: "
+      "the data do not tell the two poses apart (weakest direction: %s)\n",
+      *a.rival, shift, angle_deg, 100.0 * share, a.verification.WorstDirectionText());
+}
 
 std::string FormatIteration(const IterationReport& r) {
   std::string stage;
@@ -120,6 +138,7 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
                                                          : "");
     }
     out += FinishLine(a->finish, a->verified, result.sampling_distance);
+    if (a->rival) out += RivalLine(*a, result.transform);
   }
   const ScaleReport& sc = result.scales;
   if (sc.working_voxel > 0.0) {

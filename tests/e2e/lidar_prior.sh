@@ -2,8 +2,9 @@
 # One pair of a generated LiDAR scene, registered by `auto` from an odometry prior 5 degrees and
 # 1 m off (as bench/lidar_peers.py starts it): the pose returned is within 0.3 m and 1 degree of
 # the truth, and the exit code says whether it verified (0) or not (4). With EXPECT `trusted`
-# the pose may be off, but then it must not verify.
-#   lidar_prior.sh MLSREG_SCAN MLSREG BENCH_DIR PYTHON KIND SEED MOVERS PAIR [EXPECT]
+# the pose may be off, but then it must not verify; with `ambiguous` the verdict must be
+# `ambiguous`, with the rival named. NOISE: the range noise in metres (0.01).
+#   lidar_prior.sh MLSREG_SCAN MLSREG BENCH_DIR PYTHON KIND SEED MOVERS PAIR [EXPECT] [NOISE]
 # PYTHON: an interpreter with numpy. The cases (tests/CMakeLists.txt):
 #   - open_road 1, 34 -> 31: nothing fixes the pose along the road, so nothing verifies; the
 #     start's MLS-SICP refinement slid 1.5 km off the road from a voxel alignment 0.2 m from the
@@ -13,7 +14,9 @@
 #     truth, pulled), and was returned verified;
 #   - corridor 2, 82 -> 78 (trusted): the start's refinement, slid 0.57 m along the corridor,
 #     verified; the finish moved it 0.88 m and did not verify, and the slid pose was returned
-#     verified.
+#     verified;
+#   - corridor 2, 82 -> 78 at 3 cm (ambiguous): a pose 0.49 m along the corridor verified, and
+#     nothing else ran; the rival search finds a pose 1-2 voxels away that explains as much.
 set -euo pipefail
 SCAN=$1
 MLSREG=$2
@@ -24,14 +27,16 @@ SEED=$6
 MOVERS=$7
 PAIR=$8
 EXPECT=${9:-right}
+NOISE=${10:-0.01}
 fail() { echo "FAIL: $*" >&2; exit 1; }
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
 "$SCAN" --lidar --scene "$KIND" --scene-seed "$SEED" --movers "$MOVERS" --beam-layout hdl64e \
-  --azimuth-step 0.17 --noise-m 0.01 --pair-gaps 4,8,12 --pairs 16 --out "$work" > /dev/null
-manifest=$work/${KIND}_s$SEED/noise0.01/pairs.csv
-pair=${KIND}_s${SEED}_noise0.01_$PAIR
+  --azimuth-step 0.17 --noise-m "$(echo 0.01 "$NOISE" | tr ' ' '\n' | sort -u | paste -sd,)" \
+  --pair-gaps 4,8,12 --pairs 16 --out "$work" > /dev/null
+manifest=$work/${KIND}_s$SEED/noise$NOISE/pairs.csv
+pair=${KIND}_s${SEED}_noise${NOISE}_$PAIR
 
 read -r source target init < <("$PYTHON" - "$BENCH" "$manifest" "$pair" <<'PY'
 import sys
@@ -64,6 +69,10 @@ print(f"{sys.argv[3]} from the prior: {rotation:.3f} deg, {translation:.3f} m, "
 right = rotation < 1.0 and translation < 0.3
 if sys.argv[6] == "trusted":
     assert right or not verified, "a pose more than 0.3 m or 1 degree off verified"
+elif sys.argv[6] == "ambiguous":
+    assert result["verification"]["verdict"] == "ambiguous", result["verification"]["verdict"]
+    rival = result["auto"]["rival"]
+    assert rival is not None and result["auto"]["candidates"][rival]["origin"] == "rival"
 else:
     assert right, "the pose is more than 0.3 m or 1 degree off"
 assert (sys.argv[5] == "0") == verified, "exit code and verdict disagree"

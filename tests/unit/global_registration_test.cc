@@ -382,6 +382,30 @@ TEST(VerificationTest, ASettlingBeyondTheBoundPullsAVerifiedPose) {
   EXPECT_EQ(wrong.verdict, before);
 }
 
+// The probes of the rival search: a motion along the weakest direction by a distance moves the
+// samples by about that much; a translation exactly, a rotation about the samples' centre at
+// their RMS radius (the lever).
+TEST(VerificationTest, AMotionAlongTheWorstDirectionMovesTheSamplesByTheDistance) {
+  VerificationScore score;
+  score.worst_direction << 0, 0, 0, 3, 0, 0;  // any length: along x
+  const Matrix4 start = RandomPerturbation(20.0, 1.0, Vec3::Zero(), 7);
+  const Matrix4 slid = MovedAlongWorstDirection(score, start, 0.5);
+  EXPECT_LT(RotationErrorDeg(slid, start), 1e-9);
+  EXPECT_LT(((slid.col(3) - start.col(3)).head<3>() - Vec3(0.5, 0.0, 0.0)).norm(), 1e-12);
+
+  score.worst_direction << 0, 0, 1, 0, 0, 0;  // a turn about z
+  score.direction_centre = Vec3(1.0, 1.0, 0.0);
+  score.direction_lever = 2.0;
+  const Matrix4 turned = MovedAlongWorstDirection(score, Matrix4::Identity(), 0.2);
+  const auto moved = [&](const Vec3& p) {
+    return turned.topLeftCorner<3, 3>() * p + turned.topRightCorner<3, 1>();
+  };
+  EXPECT_LT((moved(score.direction_centre) - score.direction_centre).norm(), 1e-12);
+  const Vec3 at_lever = score.direction_centre + Vec3(2.0, 0.0, 0.0);
+  EXPECT_NEAR((moved(at_lever) - at_lever).norm(), 0.2, 1e-3);  // 0.1 rad at 2: a chord of 0.19992
+  EXPECT_NEAR(RotationErrorDeg(turned, Matrix4::Identity()), 0.1 * 180.0 / std::numbers::pi, 1e-9);
+}
+
 TEST(VerificationTest, DistancesToTheMlsSurfaceOfAPlane) {
   auto plane = Target::Build(testing::SamplePlaneGrid(1.0, 0.02, 0.002, 3)).value();
   const std::vector<Vec3> points = {Vec3(0.1, 0.2, 0.0), Vec3(0.1, 0.2, 0.03),

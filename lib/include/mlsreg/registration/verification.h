@@ -200,18 +200,18 @@ VerificationScore VerifyPose(const Target& target, const PointCloud& source,
 VerificationScore VerifyPose(const Target& target, const PointCloud& source,
                              const Matrix4& transform, double source_noise_d, int threads);
 
-// A verified `score` whose pose a longer settling than its own (method auto's finish, over every
-// source point) moved by `displacement`, to a pose that did not verify: the settling says where
-// the data put the pose, and beyond the verdict's settling bound (max_settle_sigmas noise sigmas
-// of the band, at least min_band_spacings of `median_spacing`) the pose is not there. Then the
-// score becomes `pulled` with that displacement as its settling, and true is returned; otherwise
-// it is left as it is.
 // `transform` followed by a motion along `score`'s worst direction that moves the covered samples
 // by about `distance` (a translation moves each by exactly that; a rotation about the samples'
 // centre moves them by that at their RMS radius).
 Matrix4 MovedAlongWorstDirection(const VerificationScore& score, const Matrix4& transform,
                                  double distance);
 
+// A verified `score` whose pose a longer settling than its own (method auto's finish, over every
+// source point) moved by `displacement`, to a pose that did not verify: the settling says where
+// the data put the pose, and beyond the verdict's settling bound (max_settle_sigmas noise sigmas
+// of the band, at least min_band_spacings of `median_spacing`) the pose is not there. Then the
+// score becomes `pulled` with that displacement as its settling, and true is returned; otherwise
+// it is left as it is.
 bool PulledBySettling(VerificationScore& score, double displacement, double median_spacing,
                       const VerificationOptions& options = {});
 
