@@ -122,6 +122,7 @@ def test_register_recovers_the_ground_truth(bun000, bunny_target, gt, near_start
     assert finish["kind"] == ("plane-to-plane" if finish["noise_d"] < finish["crossover_d"] else "mls")
     assert finish["kept"] and finish["samples"] > 2000 and finish["iterations"] >= 1
     assert finish["contradicted"] is False
+    assert result.auto["rival"] is None  # the bunny fixes every direction: no rival searched
     assert result.verification["verdict"] == "verified" and result.verification["covered"] > 0
     # Verified means the agreeing samples fix every direction of motion to a standard error of at
     # most one noise sigma, a third of the band.
@@ -399,6 +400,44 @@ def _bumpy_sheet(n, low, high, seed, noise):
     z = 0.15 * np.sin(3 * xy[:, 0]) * np.cos(2 * xy[:, 1]) + 0.1 * np.sin(5 * xy[:, 1] + 1)
     points = np.column_stack([xy, z])
     return points + r.normal(scale=noise, size=points.shape)
+
+
+def _corridor(half_length, seed, pillar_spacing=2.0, noise=0.01):
+    # A floor between two walls 4 m apart, 3 m tall, and pillars (0.6 m wide, 0.3 m deep, 1.5 m
+    # tall) against one wall every `pillar_spacing` metres, sampled every 0.1 m.
+    r = np.random.default_rng(seed)
+    step = 0.1
+    xs = np.arange(-half_length, half_length + 1e-9, step)
+    ys = np.arange(-2.0, 2.0 + 1e-9, step)
+    zs = np.arange(0.0, 3.0 + 1e-9, step)
+    floor = np.array([(x, y, 0.0) for x in xs for y in ys])
+    walls = np.array([(x, side, z) for x in xs for z in zs for side in (-2.0, 2.0)])
+    parts = [floor, walls]
+    for px in np.arange(-18.0, 18.0 + 1e-9, pillar_spacing):
+        if abs(px) > half_length:
+            continue
+        for z in np.arange(0.0, 1.5 + 1e-9, step):
+            parts.append(np.array([(px + dx, 1.7 + t, z) for t in np.arange(0.0, 0.3 + 1e-9, step / 2)
+                                   for dx in (-0.3, 0.3)]))
+            parts.append(np.array([(px + t, 1.7, z) for t in np.arange(-0.3, 0.3 + 1e-9, step / 2)]))
+    points = np.vstack(parts)
+    return points + r.normal(scale=noise, size=points.shape)
+
+
+def test_auto_calls_a_pose_among_repeated_pillars_ambiguous_and_names_the_rival():
+    # Pillars every 2 m along a corridor: from the truth the result verifies on its own, but a pose
+    # one period along the corridor explains as much, so the result is `ambiguous`, not verified,
+    # and the report names the rival candidate.
+    result = mlsreg.register(_corridor(15.0, 2), mlsreg.Target(_corridor(20.0, 1)), init=np.eye(4))
+    assert np.linalg.norm(result.transform[:3, 3]) < 0.05
+    assert result.verified is False
+    assert result.verification["verdict"] == "ambiguous"
+    rival = result.auto["rival"]
+    assert isinstance(rival, int)
+    candidate = result.auto["candidates"][rival]
+    assert candidate["origin"] == "rival"
+    assert abs(np.asarray(candidate["refined"]).reshape(4, 4)[0, 3]) == pytest.approx(2.0, abs=0.2)
+    assert result.auto["timings"]["rivals"] > 0
 
 
 def test_auto_finishes_a_pulled_result_and_keeps_the_finish_only_if_it_verifies():
