@@ -120,7 +120,8 @@ class IterationReport:
     """One ICP iteration, as the progress callback and stream see it."""
 
     iteration: int
-    # "single", or for method auto "coarse", "start", "global", "candidate", "final", "finish"
+    # "single", or for method auto "coarse", "start", "global", "candidate", "final", "finish",
+    # "rival"
     stage: str
     candidate: int  # auto: the candidate refined, else -1
     rmse: float  # of this iteration's accepted correspondences, absolute units

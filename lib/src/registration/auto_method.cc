@@ -17,7 +17,8 @@
 //   5. A verified result that only a small share of the overlap fixes along one direction (a
 //      corridor, whose doors and pillars may repeat) is searched for a rival: the voxel clouds
 //      aligned again from the result moved along that direction. A rival, another pose that
-//      explains as many samples, makes the result `ambiguous`, not verified (SearchRival).
+//      explains as many samples, makes the result `ambiguous`, not verified
+//      (SearchRivalThenFinish).
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -385,8 +386,9 @@ class AutoRegistration {
   // source point (up to kFinishMaxSamples); its pose is kept when it ran on enough pairs and
   // verifies in turn, so the verdict is always of the pose returned.
   absl::StatusOr<RegistrationResult> Polish(RegistrationResult result) {
-    if (!params_.finish || !FinishPolishes(best_score_.verdict))
+    if (!params_.finish || !FinishPolishes(best_score_.verdict)) {
       return SearchRivalThenFinish(std::move(result));
+    }
     const Clock::time_point phase = Clock::now();
     FinishReport& finish = report_.finish;
     finish.noise_d = problem_.noise_d;
