@@ -76,19 +76,34 @@ VerificationScore FromProto(const v1::VerificationScore& p) {
 
 namespace {
 
+void CandidateToProto(const AutoCandidate& c, v1::AutoCandidate* p) {
+  p->set_origin(static_cast<v1::CandidateOrigin>(
+      EnumToWire(CandidateOriginNames(), static_cast<int>(c.origin))));
+  wire::ToProto(c.start, p->mutable_start());
+  wire::ToProto(c.refined, p->mutable_refined());
+  p->set_feature_inliers(c.feature_inliers);
+  p->set_iterations(c.iterations);
+  ToProto(c.score, p->mutable_score());
+  p->set_seconds(c.seconds);
+  p->set_in_start_basin(c.in_start_basin);
+}
+
+AutoCandidate CandidateFromProto(const v1::AutoCandidate& c) {
+  AutoCandidate a;
+  a.origin = EnumFromWire(CandidateOriginNames(), c.origin(), CandidateOrigin::kStart, "origin")
+                 .value_or(CandidateOrigin::kStart);
+  a.start = ReportedFromProto(c.start());
+  a.refined = ReportedFromProto(c.refined());
+  a.feature_inliers = c.feature_inliers();
+  a.iterations = c.iterations();
+  a.score = FromProto(c.score());
+  a.seconds = c.seconds();
+  a.in_start_basin = c.in_start_basin();
+  return a;
+}
+
 void AutoReportToProto(const AutoReport& r, v1::AutoReport* out) {
-  for (const AutoCandidate& c : r.candidates) {
-    v1::AutoCandidate* p = out->add_candidates();
-    p->set_origin(static_cast<v1::CandidateOrigin>(
-        EnumToWire(CandidateOriginNames(), static_cast<int>(c.origin))));
-    wire::ToProto(c.start, p->mutable_start());
-    wire::ToProto(c.refined, p->mutable_refined());
-    p->set_feature_inliers(c.feature_inliers);
-    p->set_iterations(c.iterations);
-    ToProto(c.score, p->mutable_score());
-    p->set_seconds(c.seconds);
-    p->set_in_start_basin(c.in_start_basin);
-  }
+  for (const AutoCandidate& c : r.candidates) CandidateToProto(c, out->add_candidates());
   out->set_chosen(r.chosen);
   out->set_verified(r.verified);
   ToProto(r.verification, out->mutable_verification());
@@ -115,19 +130,7 @@ void AutoReportToProto(const AutoReport& r, v1::AutoReport* out) {
 
 AutoReport AutoReportFromProto(const v1::AutoReport& p) {
   AutoReport r;
-  for (const v1::AutoCandidate& c : p.candidates()) {
-    AutoCandidate a;
-    a.origin = EnumFromWire(CandidateOriginNames(), c.origin(), CandidateOrigin::kStart, "origin")
-                   .value_or(CandidateOrigin::kStart);
-    a.start = ReportedFromProto(c.start());
-    a.refined = ReportedFromProto(c.refined());
-    a.feature_inliers = c.feature_inliers();
-    a.iterations = c.iterations();
-    a.score = FromProto(c.score());
-    a.seconds = c.seconds();
-    a.in_start_basin = c.in_start_basin();
-    r.candidates.push_back(a);
-  }
+  for (const v1::AutoCandidate& c : p.candidates()) r.candidates.push_back(CandidateFromProto(c));
   r.chosen = p.chosen();
   r.verified = p.verified();
   r.verification = FromProto(p.verification());
@@ -206,6 +209,7 @@ void ToProto(const RegistrationResult& r, v1::Result* out) {
   out->set_source_noise_sigma_d(r.source_noise_d);
   if (r.auto_report) AutoReportToProto(*r.auto_report, out->mutable_auto_report());
   if (r.verification) ToProto(*r.verification, out->mutable_verification());
+  if (r.rival) CandidateToProto(*r.rival, out->mutable_rival());
   v1::Scales* scales = out->mutable_scales();
   scales->set_mean_spacing(r.scales.mean_spacing);
   scales->set_median_spacing(r.scales.median_spacing);
@@ -243,6 +247,7 @@ RegistrationResult FromProto(const v1::Result& p) {
   r.source_noise_d = p.source_noise_sigma_d();
   if (p.has_auto_report()) r.auto_report = AutoReportFromProto(p.auto_report());
   if (p.has_verification()) r.verification = FromProto(p.verification());
+  if (p.has_rival()) r.rival = CandidateFromProto(p.rival());
   const v1::Scales& scales = p.scales();
   r.scales = {scales.mean_spacing(), scales.median_spacing(), scales.spacing_p90(),
               scales.extent(),       scales.working_voxel(),  scales.capture_start(),

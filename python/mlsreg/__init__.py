@@ -181,6 +181,8 @@ class Result:
     auto: Optional[dict]
     method: str
     verification: Optional[dict] = None
+    # Another pose that explains the source as well (verdict "ambiguous"): a candidate dict.
+    rival: Optional[dict] = None
     scales: Optional[dict] = None
     # Remote registrations only:
     request_id: Optional[str] = None

@@ -74,16 +74,17 @@ py::dict ScoreToPython(const VerificationScore& s) {
       py::arg("edge_samples") = s.edge_samples);
 }
 
+py::dict CandidateToPython(const AutoCandidate& c) {
+  return py::dict(py::arg("origin") = std::string(CandidateOriginName(c.origin)),
+                  py::arg("start") = Matrix4(c.start), py::arg("refined") = Matrix4(c.refined),
+                  py::arg("feature_inliers") = c.feature_inliers,
+                  py::arg("iterations") = c.iterations, py::arg("score") = ScoreToPython(c.score),
+                  py::arg("seconds") = c.seconds, py::arg("in_start_basin") = c.in_start_basin);
+}
+
 py::dict AutoToPython(const AutoReport& report) {
   py::list candidates;
-  for (const AutoCandidate& c : report.candidates) {
-    candidates.append(
-        py::dict(py::arg("origin") = std::string(CandidateOriginName(c.origin)),
-                 py::arg("start") = Matrix4(c.start), py::arg("refined") = Matrix4(c.refined),
-                 py::arg("feature_inliers") = c.feature_inliers,
-                 py::arg("iterations") = c.iterations, py::arg("score") = ScoreToPython(c.score),
-                 py::arg("seconds") = c.seconds, py::arg("in_start_basin") = c.in_start_basin));
-  }
+  for (const AutoCandidate& c : report.candidates) candidates.append(CandidateToPython(c));
   const AutoStageTimings& t = report.timings;
   const FinishReport& f = report.finish;
   const py::dict finish(py::arg("kind") = std::string(FinishKindName(f.kind)),
@@ -194,6 +195,7 @@ py::dict ResultToPython(const RegistrationResult& result) {
   d["auto"] = result.auto_report ? py::object(AutoToPython(*result.auto_report)) : py::none();
   d["verification"] =
       result.verification ? py::object(ScoreToPython(*result.verification)) : py::none();
+  d["rival"] = result.rival ? py::object(CandidateToPython(*result.rival)) : py::none();
   const ScaleReport& sc = result.scales;
   py::dict scales(
       py::arg("mean_spacing") = sc.mean_spacing, py::arg("median_spacing") = sc.median_spacing,

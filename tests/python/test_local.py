@@ -122,7 +122,7 @@ def test_register_recovers_the_ground_truth(bun000, bunny_target, gt, near_start
     assert finish["kind"] == ("plane-to-plane" if finish["noise_d"] < finish["crossover_d"] else "mls")
     assert finish["kept"] and finish["samples"] > 2000 and finish["iterations"] >= 1
     assert finish["contradicted"] is False
-    assert result.auto["rival"] is None  # the bunny fixes every direction: no rival searched
+    assert result.auto["rival"] is None and result.rival is None  # no rival searched
     assert result.verification["verdict"] == "verified" and result.verification["covered"] > 0
     # Verified means the agreeing samples fix every direction of motion to a standard error of at
     # most one noise sigma, a third of the band.
@@ -438,6 +438,8 @@ def test_auto_calls_a_pose_among_repeated_pillars_ambiguous_and_names_the_rival(
     assert candidate["origin"] == "rival"
     assert abs(np.asarray(candidate["refined"]).reshape(4, 4)[0, 3]) == pytest.approx(2.0, abs=0.2)
     assert result.auto["timings"]["rivals"] > 0
+    assert result.rival["origin"] == "rival"  # on the result too, as for any method
+    np.testing.assert_array_equal(result.rival["refined"], candidate["refined"])
 
 
 def test_auto_finishes_a_pulled_result_and_keeps_the_finish_only_if_it_verifies():

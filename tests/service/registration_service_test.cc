@@ -54,6 +54,35 @@ TEST(ResultCodecTest, UserLengthsCrossTheWire) {
   EXPECT_EQ(back.scales.mls_radius, 0.004);
 }
 
+// An ambiguous result's rival crosses the wire with its pose, origin and score; a result without
+// one has none after the trip.
+TEST(ResultCodecTest, TheRivalCrossesTheWire) {
+  RegistrationResult result;
+  EXPECT_FALSE(wire::FromProto([&] {
+                 v1::Result proto;
+                 wire::ToProto(result, &proto);
+                 return proto;
+               }())
+                   .rival.has_value());
+  AutoCandidate rival;
+  rival.origin = CandidateOrigin::kRival;
+  rival.refined(0, 3) = 2.0;
+  rival.iterations = 11;
+  rival.score.verdict = Verdict::kPulled;
+  rival.score.inliers = 3149;
+  result.rival = rival;
+  v1::Result proto;
+  wire::ToProto(result, &proto);
+  EXPECT_EQ(proto.rival().origin(), v1::CANDIDATE_ORIGIN_RIVAL);
+  const RegistrationResult back = wire::FromProto(proto);
+  ASSERT_TRUE(back.rival.has_value());
+  EXPECT_EQ(back.rival->origin, CandidateOrigin::kRival);
+  EXPECT_EQ(back.rival->refined(0, 3), 2.0);
+  EXPECT_EQ(back.rival->iterations, 11);
+  EXPECT_EQ(back.rival->score.verdict, Verdict::kPulled);
+  EXPECT_EQ(back.rival->score.inliers, 3149);
+}
+
 TEST_F(RegistrationServiceTest, ResultIsBitIdenticalToTheLibraryAndProgressStreams) {
   ASSERT_NO_FATAL_FAILURE(StartWith(TestConfig()));
   const Matrix4 initial = PerturbedStart(5.0, 5.0, 7);

@@ -639,6 +639,38 @@ TEST(AutoMethodTest, APoseAmongRepeatedPillarsHasARivalAndIsAmbiguous) {
   EXPECT_NEAR(std::abs(rival.refined(0, 3)), 2.0, 0.2) << rival.refined;
   EXPECT_GT(rival.score.inliers, 0.95 * report.verification.inliers);
   EXPECT_GT(report.timings.rivals, 0.0);
+  ASSERT_TRUE(result->rival.has_value());  // the result names it too, as for any method
+  EXPECT_EQ(result->rival->refined, rival.refined);
+  EXPECT_EQ(result->verification->verdict, Verdict::kAmbiguous);
+}
+
+// Every method's verdict searches for a rival as auto's does: MLS-SICP and G-ICP from the truth
+// among repeated pillars end there, verify on their own, and are ambiguous; the probes stream
+// as stage `rival`.
+TEST(VerificationTest, AnyMethodsPoseAmongRepeatedPillarsIsAmbiguous) {
+  std::vector<double> pillars;
+  for (double x = -18.0; x <= 18.0; x += 2.0) pillars.push_back(x);
+  auto target = Target::Build(Corridor(pillars, 20.0, 0.01, 1)).value();
+  const PointCloud source = Corridor(pillars, 15.0, 0.01, 2);
+  for (const Method method : {Method::kMlsSicp, Method::kGicp}) {
+    SCOPED_TRACE(std::string(MethodName(method)));
+    RegistrationOptions options;
+    options.method = method;
+    int rival_reports = 0;
+    RegistrationCallbacks callbacks;
+    callbacks.on_iteration = [&](const IterationReport& r) {
+      rival_reports += r.stage == Stage::kRival;
+    };
+    auto result = Register(*target, source, Matrix4::Identity(), options, callbacks);
+    ASSERT_TRUE(result.ok()) << result.status();
+    EXPECT_LT(result->transform.col(3).head<3>().norm(), 0.05);
+    ASSERT_TRUE(result->verification.has_value());
+    EXPECT_EQ(result->verification->verdict, Verdict::kAmbiguous);
+    ASSERT_TRUE(result->rival.has_value());
+    EXPECT_EQ(result->rival->origin, CandidateOrigin::kRival);
+    EXPECT_NEAR(std::abs(result->rival->refined(0, 3)), 2.0, 0.2) << result->rival->refined;
+    EXPECT_GT(rival_reports, 0);
+  }
 }
 
 // A stop requested during the rival search ends the registration cancelled, not verified.

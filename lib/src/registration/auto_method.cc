@@ -30,6 +30,7 @@
 #include "mlsreg/registration/finish.h"
 #include "mlsreg/registration/global_candidates.h"
 #include "mlsreg/registration/verification.h"
+#include "rival_search.h"
 
 namespace mlsreg::internal {
 namespace {
@@ -37,54 +38,11 @@ namespace {
 // RANSAC's inlier distance: Open3D's 1.5 voxels, or 3 noise sigmas when that is larger.
 constexpr double kInlierDistancePerVoxel = 1.5;
 constexpr double kInlierDistancePerNoise = 3.0;
-// Coarse alignment ends at a capture range of this many working voxels, and a level converges
-// when no voxel moves more than this share of a voxel.
-constexpr double kFinalCaptureVoxels = 2.0;
-constexpr double kCoarseConvergenceVoxels = 0.02;
 // Candidates that get the full refinement when none before them verified.
 constexpr int kRefinedCandidates = 3;
 // A pulled pose explaining this much more of the source than a verified one replaces it
 // (ClearlyBetterPulled); BetterScore calls poses within 1 % of each other the same answer.
 constexpr double kAliasMargin = 0.05;
-// The rival search (stage 5). It runs when the information along the result's weakest direction
-// is below kRivalMaxStrength per covered sample (worst_direction_strength: about the share of the
-// overlap's surface that faces the direction): corridors 0.0015-0.0092 and the open road
-// 0.0009-0.0037 at their verified results, against streets 0.003-0.12 (56 % of them below the
-// gate) and KITTI 0.035-0.082. It starts the voxel clouds' alignment from the result moved along
-// that direction by these many final capture ranges, nearest first. A probe's pose is a rival
-// when it verifies or is only pulled, explains at least kRivalInlierShare of the result's
-// inliers, and lies more than kRivalDistinctBands verification bands from the result (the RMS
-// displacement of the source's voxel samples) even after its own settling is taken off (see
-// IsRival). Tuning corridors: the verified poses 0.3-1.3 m off, 9 from the prior and 6 from the
-// identity, all but one (0.31 m off) have a rival, as do 18 of the 35 verified right ones (their
-// aliases explain as much); no street or KITTI result has one.
-constexpr double kRivalMaxStrength = 0.02;
-constexpr double kRivalProbeCaptures[] = {-1.0, 1.0, -2.0, 2.0};
-constexpr double kRivalDistinctBands = 1.5;
-constexpr double kRivalInlierShare = 0.95;
-
-// The caller's callbacks with every report stamped with its stage and candidate.
-RegistrationCallbacks StampedCallbacks(const RegistrationCallbacks& callbacks, Stage stage,
-                                       int candidate) {
-  RegistrationCallbacks out;
-  out.should_stop = callbacks.should_stop;
-  if (callbacks.on_iteration) {
-    out.on_iteration = [&callbacks, stage, candidate](const IterationReport& report) {
-      IterationReport stamped = report;
-      stamped.stage = stage;
-      stamped.candidate = candidate;
-      callbacks.on_iteration(stamped);
-    };
-  }
-  return out;
-}
-
-void Stamp(RegistrationResult& result, Stage stage, int candidate) {
-  for (IterationReport& report : result.trace) {
-    report.stage = stage;
-    report.candidate = candidate;
-  }
-}
 
 class AutoRegistration {
  public:
@@ -272,21 +230,16 @@ class AutoRegistration {
     problem.initial = start;
     problem.callbacks = &callbacks;
     problem.iteration_offset = iteration_offset;
-    const VoxelCloud& target_voxels = target_.voxel_cloud();
-    CoarseSchedule schedule;
-    schedule.final_capture = kFinalCaptureVoxels * target_voxels.voxel;
-    schedule.start_capture =
-        StartCapture(target_voxels, source_voxels_, start, schedule.final_capture,
-                     target_.scales().extent, problem_.threads);
-    schedule.convergence = kCoarseConvergenceVoxels * target_voxels.voxel;
-    schedule.max_iterations = max_iterations;
+    CoarseSchedule schedule =
+        ScheduleFrom(target_, source_voxels_, start, max_iterations, problem_.threads);
     if (basin_of) {
       schedule.reached = [this, basin_of](const RigidTransform& pose) {
         return InBasinOf(*basin_of, pose.matrix());
       };
     }
     last_capture_ = {schedule.start_capture, schedule.final_capture};
-    RegistrationResult result = AlignVoxelClouds(problem, target_voxels, source_voxels_, schedule);
+    RegistrationResult result =
+        AlignVoxelClouds(problem, target_.voxel_cloud(), source_voxels_, schedule);
     Stamp(result, stage, candidate);
     return result;
   }
@@ -437,45 +390,25 @@ class AutoRegistration {
     return SearchRivalThenFinish(std::move(result));
   }
 
-  // Stage 5: a verified result that few samples fix along one direction is checked for a rival.
+  // Stage 5: a verified result that few samples fix along one direction is checked for a rival
+  // (rival_search.h); one makes it `ambiguous`.
   absl::StatusOr<RegistrationResult> SearchRivalThenFinish(RegistrationResult result) {
-    if (!best_score_.verified() || !(best_score_.worst_direction_strength < kRivalMaxStrength)) {
-      return Finish(std::move(result));
+    if (!SearchesForRival(best_score_)) return Finish(std::move(result));
+    const int first = static_cast<int>(report_.candidates.size());
+    RivalSearch search = SearchRival(
+        result.transform, best_score_, source_voxels_, target_.voxel_cloud().voxel,
+        [&](const Matrix4& from, int k) {
+          return AlignCoarse(from, Stage::kRival, first + k, 0, params_.candidate_iterations);
+        },
+        [&](const Matrix4& pose) { return Verify(pose); });
+    for (AutoCandidate& probe : search.probes) report_.candidates.push_back(std::move(probe));
+    report_.timings.rivals = search.seconds;
+    if (search.cancelled) return Cancelled(std::move(result));
+    if (search.rival) {
+      report_.rival = first + *search.rival;
+      best_score_.verdict = Verdict::kAmbiguous;
     }
-    const Clock::time_point phase = Clock::now();
-    const double capture = kFinalCaptureVoxels * target_.voxel_cloud().voxel;
-    for (const double captures : kRivalProbeCaptures) {
-      const Clock::time_point t = Clock::now();
-      const int index = static_cast<int>(report_.candidates.size());
-      const Matrix4 from =
-          MovedAlongWorstDirection(best_score_, result.transform, captures * capture);
-      const RegistrationResult probe =
-          AlignCoarse(from, Stage::kRival, index, 0, params_.candidate_iterations);
-      if (probe.termination == Termination::kCancelled) return Cancelled(std::move(result));
-      VerificationScore score = Verify(probe.transform);
-      const bool rival = IsRival(score, probe.transform, result.transform);
-      report_.candidates.push_back({CandidateOrigin::kRival, from, probe.transform, 0,
-                                    probe.iterations, std::move(score), Seconds(t)});
-      if (rival) {
-        report_.rival = index;
-        best_score_.verdict = Verdict::kAmbiguous;
-        break;
-      }
-    }
-    report_.timings.rivals = Seconds(phase);
     return Finish(std::move(result));
-  }
-
-  // Whether `pose` (scored `score`) is a rival of the verified `result` (scored best_score_): at
-  // another pose, yet explaining as many samples (see kRivalDistinctBands). A pulled probe is a
-  // voxel alignment that stopped short of where the data put it; it is another pose only if it
-  // stays distinct after moving as far as its settling does (an open road: probes 1-2 m along
-  // the road came back short of the result and pulled toward it).
-  bool IsRival(const VerificationScore& score, const Matrix4& pose, const Matrix4& result) const {
-    if (score.verdict != Verdict::kVerified && score.verdict != Verdict::kPulled) return false;
-    if (score.inliers < kRivalInlierShare * static_cast<double>(best_score_.inliers)) return false;
-    return RmsDistanceBetween(source_voxels_.points, result, pose) - score.settle_displacement >
-           kRivalDistinctBands * best_score_.inlier_distance;
   }
 
   // Verified, with enough of the source over the target's data to need no global stage.

@@ -137,6 +137,18 @@ double StartCapture(const VoxelCloud& target, const VoxelCloud& source, const Ma
                     std::max(final_capture, 0.5 * target_extent));
 }
 
+CoarseSchedule ScheduleFrom(const Target& target, const VoxelCloud& source, const Matrix4& start,
+                            int max_iterations, int threads) {
+  const VoxelCloud& voxels = target.voxel_cloud();
+  CoarseSchedule schedule;
+  schedule.final_capture = kFinalCaptureVoxels * voxels.voxel;
+  schedule.start_capture =
+      StartCapture(voxels, source, start, schedule.final_capture, target.scales().extent, threads);
+  schedule.convergence = kCoarseConvergenceVoxels * voxels.voxel;
+  schedule.max_iterations = max_iterations;
+  return schedule;
+}
+
 RegistrationResult AlignVoxelClouds(const RegistrationProblem& problem, const VoxelCloud& target,
                                     const VoxelCloud& source, const CoarseSchedule& schedule) {
   RegistrationResult result;

@@ -23,11 +23,22 @@ struct CoarseSchedule {
   std::function<bool(const RigidTransform&)> reached;
 };
 
+// Coarse alignment ends at a capture range of this many working voxels, and a level converges
+// when no voxel moves more than this share of a voxel.
+inline constexpr double kFinalCaptureVoxels = 2.0;
+inline constexpr double kCoarseConvergenceVoxels = 0.02;
+
 // Samples of the start pose: the capture range a coarse alignment from `initial` starts with,
 // kStartCapturePercentile of the source voxels' distances to the target's voxel cloud, at least
 // `final_capture` and at most half the target's extent.
 double StartCapture(const VoxelCloud& target, const VoxelCloud& source, const Matrix4& initial,
                     double final_capture, double target_extent, int threads = 1);
+
+// The schedule of an alignment of `source` (the source's voxel cloud at the target's working
+// voxel) from `start` to `target`'s voxel cloud: the capture range from what `start` leaves
+// between them (StartCapture) down to kFinalCaptureVoxels, at most `max_iterations`.
+CoarseSchedule ScheduleFrom(const Target& target, const VoxelCloud& source, const Matrix4& start,
+                            int max_iterations, int threads);
 
 // Aligns `source` (a voxel cloud of the problem's source) to `target` from problem.initial.
 // Iterations are reported through problem.callbacks and appended to the result's trace.

@@ -36,4 +36,27 @@ inline void RecordIteration(RegistrationResult& result, IterationReport& report,
   if (callbacks.on_iteration) callbacks.on_iteration(report);
 }
 
+// The caller's callbacks with every report stamped with its stage and candidate.
+inline RegistrationCallbacks StampedCallbacks(const RegistrationCallbacks& callbacks, Stage stage,
+                                              int candidate) {
+  RegistrationCallbacks out;
+  out.should_stop = callbacks.should_stop;
+  if (callbacks.on_iteration) {
+    out.on_iteration = [&callbacks, stage, candidate](const IterationReport& report) {
+      IterationReport stamped = report;
+      stamped.stage = stage;
+      stamped.candidate = candidate;
+      callbacks.on_iteration(stamped);
+    };
+  }
+  return out;
+}
+
+inline void Stamp(RegistrationResult& result, Stage stage, int candidate) {
+  for (IterationReport& report : result.trace) {
+    report.stage = stage;
+    report.candidate = candidate;
+  }
+}
+
 }  // namespace mlsreg::internal

@@ -5,11 +5,13 @@
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
+#include "coarse_alignment.h"
 #include "method_runners.h"
 #include "mlsreg/geometry/mls_radius.h"
 #include "mlsreg/geometry/noise_estimate.h"
 #include "mlsreg/registration/parameters.h"
 #include "mlsreg/registration/verification.h"
+#include "rival_search.h"
 
 namespace mlsreg {
 
@@ -91,6 +93,57 @@ double SnapToTargetPatches(const Target& target, const RegistrationOptions& opti
   }
   const double patches_d = patches->radius() / target.sampling_distance();
   return std::abs(radius_d - patches_d) <= kPatchRadiusTolerance * patches_d ? patches_d : radius_d;
+}
+
+}  // namespace
+
+namespace {
+
+// The verdict on a method's result as method auto gives its own: the source's voxel samples at
+// the target's working voxel scored, and a verified pose that few samples fix along one
+// direction searched for a rival (rival_search.h). A stop asked for during the search cancels
+// the result (no verdict).
+void VerifyWithRivalSearch(const RegistrationProblem& problem, RegistrationResult& result) {
+  const Target& target = *problem.target;
+  const VoxelCloud samples = BuildVoxelCloud(problem.source->points, target.voxel_cloud().voxel,
+                                             problem.source->viewpoint, problem.threads);
+  VerificationCaches caches;
+  const auto verify = [&](const Matrix4& pose) {
+    return VerifyAlignment(target, samples, pose, problem.noise_levels, {}, problem.threads,
+                           &caches);
+  };
+  VerificationScore score = verify(result.transform);
+  if (internal::SearchesForRival(score)) {
+    const int iterations = result.iterations;
+    const internal::RivalSearch search = internal::SearchRival(
+        result.transform, score, samples, target.voxel_cloud().voxel,
+        [&](const Matrix4& from, int k) {
+          const RegistrationCallbacks callbacks =
+              internal::StampedCallbacks(*problem.callbacks, Stage::kRival, k);
+          RegistrationProblem aligned = problem;
+          aligned.initial = from;
+          aligned.callbacks = &callbacks;
+          aligned.iteration_offset = iterations;
+          RegistrationResult probe = internal::AlignVoxelClouds(
+              aligned, target.voxel_cloud(), samples,
+              internal::ScheduleFrom(target, samples, from,
+                                     problem.options->automatic.candidate_iterations,
+                                     problem.threads));
+          internal::Stamp(probe, Stage::kRival, k);
+          return probe;
+        },
+        verify);
+    if (search.cancelled) {
+      result.termination = Termination::kCancelled;
+      result.converged = false;
+      return;
+    }
+    if (search.rival) {
+      score.verdict = Verdict::kAmbiguous;
+      result.rival = search.probes[*search.rival];
+    }
+  }
+  result.verification = std::move(score);
 }
 
 }  // namespace
@@ -177,13 +230,15 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
     result->scales.user_lengths.push_back({name, value, value / d});
   }
   if (options.verify && result->termination != Termination::kCancelled) {
-    if (result->auto_report) {
-      result->verification = result->auto_report->verification;
+    if (const std::optional<AutoReport>& report = result->auto_report) {
+      result->verification = report->verification;
+      if (report->rival) result->rival = report->candidates[*report->rival];
     } else {
-      result->verification =
-          VerifyPose(target, source, result->transform, source_noise_d, problem.threads);
+      VerifyWithRivalSearch(problem, *result);
     }
-    result->scales.verification_band = result->verification->inlier_distance;
+    if (result->verification) {
+      result->scales.verification_band = result->verification->inlier_distance;
+    }
   }
   result->timings.total = internal::Seconds(start);
   return result;

@@ -187,6 +187,10 @@ struct RegistrationResult {
   // Whether the result can be trusted (RegistrationOptions::verify; any method). Unset when not
   // asked for or cancelled.
   std::optional<VerificationScore> verification;
+  // Another pose that explains the source as well as the verified result (the rival search along
+  // its weakest direction, any method): the verdict is then `ambiguous`. Method auto lists it
+  // among its candidates too (AutoReport::rival).
+  std::optional<AutoCandidate> rival;
   ScaleReport scales;
 };
 

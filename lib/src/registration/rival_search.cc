@@ -1,0 +1,68 @@
+#include "rival_search.h"
+
+#include "coarse_alignment.h"
+#include "loop_support.h"
+
+namespace mlsreg::internal {
+namespace {
+
+// See SearchesForRival.
+constexpr double kRivalMaxStrength = 0.02;
+// The probes: the result moved by these many final capture ranges, nearest first. Probes at one
+// capture range alone would find 8 of the 15 verified aliases of the tuning corridors, all four
+// 14.
+constexpr double kRivalProbeCaptures[] = {-1.0, 1.0, -2.0, 2.0};
+// A rival ends more than this many verification bands from the result (the RMS displacement of
+// the source's voxel samples), even after its own settling is taken off...
+constexpr double kRivalDistinctBands = 1.5;
+// ...and explains at least this share of the result's inliers.
+constexpr double kRivalInlierShare = 0.95;
+
+// Whether the probe `pose` (scored `probe`) is a rival of `result` (scored `score`). A pulled
+// probe is a voxel alignment that stopped short of where the data put it; it is another pose
+// only if it stays distinct after moving as far as its settling does (an open road: probes 1-2 m
+// along the road came back 0.06-0.22 m short of the result, pulled toward it).
+bool IsRival(const VerificationScore& probe, const Matrix4& pose, const VerificationScore& score,
+             const Matrix4& result, const VoxelCloud& source_voxels) {
+  if (probe.verdict != Verdict::kVerified && probe.verdict != Verdict::kPulled) return false;
+  if (probe.inliers < kRivalInlierShare * static_cast<double>(score.inliers)) return false;
+  return RmsDistanceBetween(source_voxels.points, result, pose) - probe.settle_displacement >
+         kRivalDistinctBands * score.inlier_distance;
+}
+
+}  // namespace
+
+bool SearchesForRival(const VerificationScore& score) {
+  return score.verified() && score.worst_direction_strength < kRivalMaxStrength;
+}
+
+RivalSearch SearchRival(const Matrix4& result, const VerificationScore& score,
+                        const VoxelCloud& source_voxels, double working_voxel,
+                        const std::function<RegistrationResult(const Matrix4&, int)>& align,
+                        const std::function<VerificationScore(const Matrix4&)>& verify) {
+  const Clock::time_point start = Clock::now();
+  RivalSearch search;
+  const double capture = kFinalCaptureVoxels * working_voxel;
+  for (const double captures : kRivalProbeCaptures) {
+    const Clock::time_point t = Clock::now();
+    const int k = static_cast<int>(search.probes.size());
+    const Matrix4 from = MovedAlongWorstDirection(score, result, captures * capture);
+    const RegistrationResult probe = align(from, k);
+    if (probe.termination == Termination::kCancelled) {
+      search.cancelled = true;
+      break;
+    }
+    VerificationScore probe_score = verify(probe.transform);
+    const bool rival = IsRival(probe_score, probe.transform, score, result, source_voxels);
+    search.probes.push_back({CandidateOrigin::kRival, from, probe.transform, 0, probe.iterations,
+                             std::move(probe_score), Seconds(t)});
+    if (rival) {
+      search.rival = k;
+      break;
+    }
+  }
+  search.seconds = Seconds(start);
+  return search;
+}
+
+}  // namespace mlsreg::internal

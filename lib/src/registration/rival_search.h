@@ -1,0 +1,43 @@
+// The rival search: whether another pose along a verified result's weakest direction explains
+// the source as well (a corridor whose doors and pillars repeat). The data of such a scene fix
+// the pose only up to the repeats, and no test at the returned pose tells it from its alias: only
+// finding the other pose can. The result is moved along its weakest direction by one and two
+// final capture ranges of the coarse alignment (2 and 4 working voxels) both ways, the voxel
+// clouds are aligned again from there and each probe is verified. A probe that verifies or is
+// only pulled, explains nearly as many samples, and ends clearly elsewhere is a rival, and the
+// result is `ambiguous` (docs/verification.md, "Rivals").
+#pragma once
+
+#include <functional>
+#include <optional>
+#include <vector>
+
+#include "mlsreg/geometry/voxel_cloud.h"
+#include "mlsreg/registration/result.h"
+#include "mlsreg/registration/verification.h"
+
+namespace mlsreg::internal {
+
+// Whether a verified `score` rests on so little information along its weakest direction that
+// a rival is searched for: worst_direction_strength (about the share of the overlap's surface
+// that faces the direction) under 0.02. Corridors carry 0.0015-0.0092 and the open road
+// 0.0009-0.0037 at their verified results, streets 0.003-0.12 (56 % of them are searched, none
+// had a rival) and KITTI 0.035-0.082.
+bool SearchesForRival(const VerificationScore& score);
+
+struct RivalSearch {
+  std::vector<AutoCandidate> probes;  // origin kRival, in the order tried
+  std::optional<int> rival;           // the probe that is a rival (the search ends there)
+  bool cancelled = false;             // an alignment was cancelled: the search ended there
+  double seconds = 0.0;
+};
+
+// Searches for a rival of `result`, verified with `score` on `source_voxels` (the source's voxel
+// cloud at the target's working voxel). `align(from, k)` aligns the voxel clouds from `from`
+// (the k-th probe); `verify(pose)` scores a pose as `score` was scored.
+RivalSearch SearchRival(const Matrix4& result, const VerificationScore& score,
+                        const VoxelCloud& source_voxels, double working_voxel,
+                        const std::function<RegistrationResult(const Matrix4&, int)>& align,
+                        const std::function<VerificationScore(const Matrix4&)>& verify);
+
+}  // namespace mlsreg::internal
