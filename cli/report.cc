@@ -39,22 +39,6 @@ std::string FinishLine(const FinishReport& f, bool verified, double d) {
 }
 }  // namespace
 
-// Where the rival lies against the result (scored `score`), and how much of the source it
-// explains.
-std::string RivalLine(const AutoCandidate& rival, const VerificationScore& score,
-                      const Matrix4& result) {
-  const Eigen::Matrix3d turn =
-      result.topLeftCorner<3, 3>().transpose() * rival.refined.topLeftCorner<3, 3>();
-  const double angle_deg =
-      std::acos(std::clamp((turn.trace() - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / M_PI;
-  const double shift = (rival.refined.col(3) - result.col(3)).head<3>().norm();
-  const double share = score.inliers > 0 ? double(rival.score.inliers) / score.inliers : 0.0;
-  return absl::StrFormat(
-      "rival: a pose %.4g away (turned %.3g deg) explains %.1f %% as many samples: the data do "
-      "not tell the two poses apart (weakest direction: %s)\n",
-      shift, angle_deg, 100.0 * share, score.WorstDirectionText());
-}
-
 std::string FormatIteration(const IterationReport& r) {
   std::string stage;
   if (r.stage == Stage::kGlobal) {
@@ -88,6 +72,30 @@ std::string FormatVerification(const VerificationScore& v) {
   if (v.verified()) return "verification: verified: " + evidence;
   return absl::StrFormat("verification: NOT VERIFIED (%s; do not trust the transform): %s",
                          VerdictName(v.verdict), evidence);
+}
+
+// Where the rival lies against the result (scored `score`), and how much of the source it
+// explains.
+std::string FormatRival(const AutoCandidate& rival, const VerificationScore& score,
+                        const Matrix4& result) {
+  const Eigen::Matrix3d turn =
+      result.topLeftCorner<3, 3>().transpose() * rival.refined.topLeftCorner<3, 3>();
+  const double angle_deg =
+      std::acos(std::clamp((turn.trace() - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / M_PI;
+  const double shift = (rival.refined.col(3) - result.col(3)).head<3>().norm();
+  const double share = score.inliers > 0 ? double(rival.score.inliers) / score.inliers : 0.0;
+  return absl::StrFormat(
+      "rival: a pose %.4g away (turned %.3g deg) explains %.1f %% as many samples: the data do "
+      "not tell the two poses apart (weakest direction: %s)\n",
+      shift, angle_deg, 100.0 * share, score.WorstDirectionText());
+}
+
+nlohmann::json RivalJson(const AutoCandidate& rival) {
+  return {{"start", MatrixJson(rival.start)},
+          {"refined", MatrixJson(rival.refined)},
+          {"iterations", rival.iterations},
+          {"score", VerificationJson(rival.score)},
+          {"seconds", rival.seconds}};
 }
 
 std::string FormatTermination(const RegistrationResult& result, int max_iterations) {
@@ -140,7 +148,7 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
     out += FinishLine(a->finish, a->verified, result.sampling_distance);
   }
   if (result.rival && result.verification) {
-    out += RivalLine(*result.rival, *result.verification, result.transform);
+    out += FormatRival(*result.rival, *result.verification, result.transform);
   }
   const ScaleReport& sc = result.scales;
   if (sc.working_voxel > 0.0) {
@@ -257,13 +265,7 @@ nlohmann::json ResultJson(std::string_view method, const RegistrationResult& res
                         {"total", result.timings.total}}},
                       {"trace", trace}};
   if (result.verification) j["verification"] = VerificationJson(*result.verification);
-  if (result.rival) {
-    j["rival"] = {{"start", MatrixJson(result.rival->start)},
-                  {"refined", MatrixJson(result.rival->refined)},
-                  {"iterations", result.rival->iterations},
-                  {"score", VerificationJson(result.rival->score)},
-                  {"seconds", result.rival->seconds}};
-  }
+  if (result.rival) j["rival"] = RivalJson(*result.rival);
   j["scales"] = {{"mean_spacing", result.scales.mean_spacing},
                  {"median_spacing", result.scales.median_spacing},
                  {"spacing_p90", result.scales.spacing_p90},

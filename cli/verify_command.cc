@@ -1,5 +1,5 @@
 // `mlsreg verify`: whether a given transform lays the source on the target, by the verdict every
-// registration reports (registration/verification.h).
+// registration reports (registration/verification.h), rival search included.
 #include <cstdio>
 #include <fstream>
 #include <memory>
@@ -10,6 +10,7 @@
 #include "cli/report.h"
 #include "mlsreg/core/parallel_for.h"
 #include "mlsreg/io/io.h"
+#include "mlsreg/registration/registration.h"
 #include "mlsreg/registration/verification.h"
 
 namespace mlsreg::cli {
@@ -31,11 +32,18 @@ int RunVerify(const VerifyArgs& args) {
   options.threads = args.threads;
   auto target = Target::Build(*std::move(target_cloud), options);
   if (!target.ok()) return ExitFor("verify", target.status());
-  const VerificationScore score = VerifyPose(**target, *source, *transform, args.threads);
+  const PoseVerdict verdict =
+      VerifyPoseSearchingRivals(**target, *source, *transform, args.threads);
+  const VerificationScore& score = verdict.score;
   std::printf("%s\n", FormatVerification(score).c_str());
+  if (verdict.rival) {
+    std::printf("%s", FormatRival(*verdict.rival, score, Orthonormalize(*transform)).c_str());
+  }
   if (!args.json.empty()) {
+    nlohmann::json j = VerificationJson(score);
+    if (verdict.rival) j["rival"] = RivalJson(*verdict.rival);
     std::ofstream out(args.json);
-    out << VerificationJson(score).dump(2) << "\n";
+    out << j.dump(2) << "\n";
     if (!out)
       return ExitFor("verify",
                      absl::UnavailableError("cannot write --json file '" + args.json + "'"));

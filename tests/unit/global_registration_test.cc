@@ -671,6 +671,13 @@ TEST(VerificationTest, AnyMethodsPoseAmongRepeatedPillarsIsAmbiguous) {
     EXPECT_NEAR(std::abs(result->rival->refined(0, 3)), 2.0, 0.2) << result->rival->refined;
     EXPECT_GT(rival_reports, 0);
   }
+  // A pose given by the caller (mlsreg verify) gets the same verdict; VerifyPose alone, without
+  // the search, verifies it.
+  const PoseVerdict given = VerifyPoseSearchingRivals(*target, source, Matrix4::Identity());
+  EXPECT_EQ(given.score.verdict, Verdict::kAmbiguous);
+  ASSERT_TRUE(given.rival.has_value());
+  EXPECT_NEAR(std::abs(given.rival->refined(0, 3)), 2.0, 0.2);
+  EXPECT_TRUE(VerifyPose(*target, source, Matrix4::Identity()).verified());
 }
 
 // A stop requested during the rival search ends the registration cancelled, not verified.

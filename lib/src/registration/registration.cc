@@ -2,6 +2,7 @@
 // of the method table.
 #include "mlsreg/registration/registration.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
@@ -147,6 +148,23 @@ void VerifyWithRivalSearch(const RegistrationProblem& problem, RegistrationResul
 }
 
 }  // namespace
+
+PoseVerdict VerifyPoseSearchingRivals(const Target& target, const PointCloud& source,
+                                      const Matrix4& transform, int threads) {
+  static const RegistrationOptions kDefaults;
+  static const RegistrationCallbacks kNoCallbacks;
+  const KdTree tree(source.points);
+  const double d = target.sampling_distance();
+  const NoiseEstimate noise = EstimateNoise(source.points, tree, d, {}, {}, {}, threads);
+  RegistrationProblem problem{&target,    &source,       Orthonormalize(transform),
+                              &kDefaults, &kNoCallbacks, internal::Clock::now()};
+  problem.threads = std::max(1, threads);
+  problem.noise_levels = {target.noise().sigma_d * d, noise.sigma_d * d};
+  RegistrationResult result;
+  result.transform = problem.initial;
+  VerifyWithRivalSearch(problem, result);
+  return {*std::move(result.verification), std::move(result.rival)};
+}
 
 absl::StatusOr<RegistrationResult> Register(const Target& target, const PointCloud& source,
                                             const Matrix4& initial,

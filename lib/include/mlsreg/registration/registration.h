@@ -1,6 +1,8 @@
 // Registration: the one entry point the CLI, the evaluation harness and the server call.
 #pragma once
 
+#include <optional>
+
 #include "absl/status/statusor.h"
 #include "mlsreg/core/point_cloud.h"
 #include "mlsreg/core/transform.h"
@@ -26,5 +28,16 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
                                             const RegistrationOptions& options,
                                             const RegistrationCallbacks& callbacks = {},
                                             const ExecutionOptions& execution = {});
+
+// The verdict Register gives a result of any method, for a pose given by the caller: `transform`
+// (source -> target) scored on the source's voxel samples (VerifyPose, the source's noise
+// estimated) and, when it verifies on little information along its weakest direction, searched
+// for a rival (the verdict is then `ambiguous`; docs/verification.md, "Rivals").
+struct PoseVerdict {
+  VerificationScore score;
+  std::optional<AutoCandidate> rival;
+};
+PoseVerdict VerifyPoseSearchingRivals(const Target& target, const PointCloud& source,
+                                      const Matrix4& transform, int threads = 1);
 
 }  // namespace mlsreg
