@@ -64,11 +64,15 @@ std::string FormatVerification(const VerificationScore& v) {
       "%.1f %% of the overlap (%d of %d covered samples) within %.4g (%.2f d) of the target's "
       "surface, RMSE %.3f d; weakest direction: %s, standard error %.3g, %.1f %% of its %d "
       "samples agree; pull: a step of %.3g deg and %.3g would remove %.1f %% of the residuals, "
-      "settling moves the samples %.3g; neighbours share %.3g of their residuals",
+      "settling moves the samples %.3g; neighbours share %.3g of their residuals%s",
       100.0 * v.inlier_fraction, v.inliers, v.covered, v.inlier_distance, v.inlier_distance_d,
       v.rmse_d, v.WorstDirectionText(), v.worst_direction_error, 100.0 * v.worst_direction_fraction,
       v.worst_direction_samples, v.pull_rotation_deg, v.pull_translation, 100.0 * v.pull_fraction,
-      v.settle_displacement, v.coherent_residual);
+      v.settle_displacement, v.coherent_residual,
+      v.hidden > 0 ? absl::StrFormat("; of %d samples, %d lie where the target's sensor could "
+                                     "not see",
+                                     v.samples, v.hidden)
+                   : std::string());
   if (v.verified()) return "verification: verified: " + evidence;
   return absl::StrFormat("verification: NOT VERIFIED (%s; do not trust the transform): %s",
                          VerdictName(v.verdict), evidence);
@@ -163,6 +167,10 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
     if (sc.verification_band > 0.0) {
       out += absl::StrFormat("; verification band %.4g", sc.verification_band);
     }
+    if (sc.sensor) {
+      out += absl::StrFormat("; the target's sensor at (%.4g, %.4g, %.4g)", sc.sensor->x(),
+                             sc.sensor->y(), sc.sensor->z());
+    }
     for (const UserLength& length : sc.user_lengths) {
       out += absl::StrFormat("; given %s %.4g = %.4g d", length.parameter, length.value,
                              length.value_d);
@@ -218,6 +226,7 @@ nlohmann::json VerificationJson(const VerificationScore& v) {
           {"verdict", std::string(VerdictName(v.verdict))},
           {"samples", v.samples},
           {"covered", v.covered},
+          {"hidden", v.hidden},
           {"inliers", v.inliers},
           {"inlier_fraction", v.inlier_fraction},
           {"explained_fraction", v.explained_fraction},
@@ -266,16 +275,21 @@ nlohmann::json ResultJson(std::string_view method, const RegistrationResult& res
                       {"trace", trace}};
   if (result.verification) j["verification"] = VerificationJson(*result.verification);
   if (result.rival) j["rival"] = RivalJson(*result.rival);
-  j["scales"] = {{"mean_spacing", result.scales.mean_spacing},
-                 {"median_spacing", result.scales.median_spacing},
-                 {"spacing_p90", result.scales.spacing_p90},
-                 {"extent", result.scales.extent},
-                 {"working_voxel", result.scales.working_voxel},
-                 {"capture_start", result.scales.capture_start},
-                 {"capture_end", result.scales.capture_end},
-                 {"mls_radius", result.scales.mls_radius},
-                 {"verification_band", result.scales.verification_band},
-                 {"user_lengths", nlohmann::json::array()}};
+  j["scales"] = {
+      {"mean_spacing", result.scales.mean_spacing},
+      {"median_spacing", result.scales.median_spacing},
+      {"spacing_p90", result.scales.spacing_p90},
+      {"extent", result.scales.extent},
+      {"working_voxel", result.scales.working_voxel},
+      {"capture_start", result.scales.capture_start},
+      {"capture_end", result.scales.capture_end},
+      {"mls_radius", result.scales.mls_radius},
+      {"verification_band", result.scales.verification_band},
+      {"sensor", result.scales.sensor
+                     ? nlohmann::json::array({result.scales.sensor->x(), result.scales.sensor->y(),
+                                              result.scales.sensor->z()})
+                     : nlohmann::json()},
+      {"user_lengths", nlohmann::json::array()}};
   for (const UserLength& length : result.scales.user_lengths) {
     j["scales"]["user_lengths"].push_back(
         {{"parameter", length.parameter}, {"value", length.value}, {"value_d", length.value_d}});

@@ -23,6 +23,7 @@ void ToProto(const VerificationScore& s, v1::VerificationScore* out) {
   out->set_verdict(
       static_cast<v1::Verdict>(EnumToWire(VerdictNames(), static_cast<int>(s.verdict))));
   out->set_covered(s.covered);
+  out->set_hidden(s.hidden);
   out->set_explained_fraction(s.explained_fraction);
   out->set_inlier_distance(s.inlier_distance);
   for (int k = 0; k < 6; ++k) out->add_worst_direction(s.worst_direction[k]);
@@ -52,6 +53,7 @@ VerificationScore FromProto(const v1::VerificationScore& p) {
   s.verdict = EnumFromWire(VerdictNames(), p.verdict(), Verdict::kTooLittleOverlap, "verdict")
                   .value_or(Verdict::kTooLittleOverlap);
   s.covered = p.covered();
+  s.hidden = p.hidden();
   s.explained_fraction = p.explained_fraction();
   s.inlier_distance = p.inlier_distance();
   for (int k = 0; k < 6 && k < p.worst_direction_size(); ++k) {
@@ -220,6 +222,12 @@ void ToProto(const RegistrationResult& r, v1::Result* out) {
   scales->set_capture_end(r.scales.capture_end);
   scales->set_mls_radius(r.scales.mls_radius);
   scales->set_verification_band(r.scales.verification_band);
+  if (r.scales.sensor) {
+    v1::Vector3* sensor = scales->mutable_sensor();
+    sensor->set_x(r.scales.sensor->x());
+    sensor->set_y(r.scales.sensor->y());
+    sensor->set_z(r.scales.sensor->z());
+  }
   for (const UserLength& length : r.scales.user_lengths) {
     v1::UserLength* out_length = scales->add_user_lengths();
     out_length->set_parameter(length.parameter);
@@ -254,6 +262,9 @@ RegistrationResult FromProto(const v1::Result& p) {
               scales.capture_end(),  scales.mls_radius(),     scales.verification_band()};
   for (const v1::UserLength& length : scales.user_lengths()) {
     r.scales.user_lengths.push_back({length.parameter(), length.value(), length.value_d()});
+  }
+  if (scales.has_sensor()) {
+    r.scales.sensor = Vec3(scales.sensor().x(), scales.sensor().y(), scales.sensor().z());
   }
   return r;
 }

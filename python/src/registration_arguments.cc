@@ -54,7 +54,7 @@ py::dict ScoreToPython(const VerificationScore& s) {
   for (int k = 0; k < 6; ++k) direction.append(s.worst_direction[k]);
   return py::dict(
       py::arg("verified") = s.verified(), py::arg("verdict") = std::string(VerdictName(s.verdict)),
-      py::arg("samples") = s.samples, py::arg("covered") = s.covered,
+      py::arg("samples") = s.samples, py::arg("covered") = s.covered, py::arg("hidden") = s.hidden,
       py::arg("inliers") = s.inliers, py::arg("inlier_fraction") = s.inlier_fraction,
       py::arg("explained_fraction") = s.explained_fraction, py::arg("rmse_d") = s.rmse_d,
       py::arg("inlier_distance_d") = s.inlier_distance_d,
@@ -210,6 +210,9 @@ py::dict ResultToPython(const RegistrationResult& result) {
                                  py::arg("value_d") = length.value_d));
   }
   scales["user_lengths"] = user_lengths;
+  scales["sensor"] =
+      sc.sensor ? py::object(py::make_tuple(sc.sensor->x(), sc.sensor->y(), sc.sensor->z()))
+                : py::none();
   d["scales"] = scales;
   return d;
 }

@@ -16,7 +16,10 @@
 #     verified; the finish moved it 0.88 m and did not verify, and the slid pose was returned
 #     verified;
 #   - corridor 2, 82 -> 78 at 3 cm (ambiguous): a pose 0.49 m along the corridor verified, and
-#     nothing else ran; the rival search finds a pose 1-2 voxels away that explains as much.
+#     nothing else ran; the rival search finds a pose 1-2 voxels away that explains as much;
+#   - street 1, 21 -> 14 at 3 cm (early): the right pose covers 57 % of the source, the rest
+#     lying where the target's LiDAR could not see; with EXPECT `early` the pose must be right,
+#     verified, found from the start without a global stage, with the sensor at the origin.
 set -euo pipefail
 SCAN=$1
 MLSREG=$2
@@ -75,6 +78,11 @@ elif sys.argv[6] == "ambiguous":
     assert rival is not None and result["auto"]["candidates"][rival]["origin"] == "rival"
 else:
     assert right, "the pose is more than 0.3 m or 1 degree off"
+if sys.argv[6] == "early":
+    score = result["verification"]
+    assert verified and result["auto"]["early_exit"], "the start's right pose needed a global stage"
+    assert score["hidden"] > 0 and score["covered"] < 0.8 * score["samples"], score
+    assert result["scales"]["sensor"] == [0.0, 0.0, 0.0], result["scales"]["sensor"]
 assert (sys.argv[5] == "0") == verified, "exit code and verdict disagree"
 PY
 echo "lidar_prior $KIND $SEED $PAIR: ok"

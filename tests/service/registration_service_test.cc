@@ -54,6 +54,31 @@ TEST(ResultCodecTest, UserLengthsCrossTheWire) {
   EXPECT_EQ(back.scales.mls_radius, 0.004);
 }
 
+// The target's sensor and the samples hidden from it cross the wire; a target without a sensor
+// has none after the trip.
+TEST(ResultCodecTest, TheSensorAndTheHiddenSamplesCrossTheWire) {
+  RegistrationResult result;
+  result.verification = VerificationScore{};
+  EXPECT_FALSE(wire::FromProto([&] {
+                 v1::Result proto;
+                 wire::ToProto(result, &proto);
+                 return proto;
+               }())
+                   .scales.sensor.has_value());
+  result.scales.sensor = Vec3(1.5, -2.0, 0.25);
+  result.verification->samples = 5280;
+  result.verification->covered = 3012;
+  result.verification->hidden = 2136;
+  v1::Result proto;
+  wire::ToProto(result, &proto);
+  const RegistrationResult back = wire::FromProto(proto);
+  ASSERT_TRUE(back.scales.sensor.has_value());
+  EXPECT_EQ(*back.scales.sensor, Vec3(1.5, -2.0, 0.25));
+  ASSERT_TRUE(back.verification.has_value());
+  EXPECT_EQ(back.verification->hidden, 2136);
+  EXPECT_DOUBLE_EQ(back.verification->visible_covered_fraction(), 3012.0 / (5280 - 2136));
+}
+
 // An ambiguous result's rival crosses the wire with its pose, origin and score; a result without
 // one has none after the trip.
 TEST(ResultCodecTest, TheRivalCrossesTheWire) {

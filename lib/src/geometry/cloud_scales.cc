@@ -21,7 +21,8 @@ double Percentile(std::vector<double>& values, double q) {
 
 }  // namespace
 
-CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree, int threads) {
+CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree,
+                          const std::optional<Vec3>& viewpoint, int threads) {
   CloudScales scales;
   if (points.empty()) return scales;
   std::vector<std::uint32_t> all(points.size());
@@ -31,10 +32,13 @@ CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree, i
   scales.mean_spacing = d;
   const std::vector<std::uint32_t> sample =
       RandomSubsample(points.size(), kSpacingSamples, kSpacingSeed);
+  std::vector<double> sampled(sample.size());
+  for (std::size_t k = 0; k < sample.size(); ++k) sampled[k] = nearest[sample[k]];
+  scales.sensor = FindSensor(points, sample, sampled, viewpoint.value_or(Vec3::Zero()));
   std::vector<double> spacing;
   spacing.reserve(sample.size());
-  for (const std::uint32_t i : sample) {
-    if (nearest[i] >= 0.0) spacing.push_back(nearest[i]);
+  for (const double s : sampled) {
+    if (s >= 0.0) spacing.push_back(s);
   }
   scales.median_spacing = Percentile(spacing, 0.5);
   scales.spacing_p90 = Percentile(spacing, 0.9);

@@ -61,13 +61,17 @@ absl::StatusOr<std::shared_ptr<Target>> Target::BuildMutable(PointCloud cloud,
   target->tree_ = std::make_unique<KdTree>(target->cloud_.points);
   if (should_stop && should_stop()) return cancelled();
   // One nearest-neighbour pass gives d (the mean spacing) and the spacing percentiles.
-  target->scales_ = MeasureScales(target->cloud_.points, *target->tree_, options.threads);
+  target->scales_ = MeasureScales(target->cloud_.points, *target->tree_, target->cloud_.viewpoint,
+                                  options.threads);
   target->sampling_distance_ = target->scales_.mean_spacing;
   if (!(target->sampling_distance_ > 0.0)) {
     return absl::InvalidArgumentError("target has no two distinct points (sampling distance 0)");
   }
   target->voxel_cloud_ = BuildVoxelCloud(target->cloud_.points, target->scales_.working_voxel,
                                          target->cloud_.viewpoint, options.threads);
+  if (target->scales_.sensor) {
+    target->sensor_view_ = SensorView::Build(target->cloud_.points, *target->scales_.sensor);
+  }
   if (should_stop && should_stop()) return cancelled();
   if (options.surface == PartBuild::kWithTarget) {
     SurfaceProperties surface = target->AnalyzeOwnSurface(should_stop);
@@ -139,7 +143,8 @@ std::size_t Target::MemoryBytes() const {
                   : 0) +
          tree_->MemoryBytes() + (grid_ ? grid_->MemoryBytes() : 0) +
          (mls_patches_ ? mls_patches_->MemoryBytes() : 0) +
-         (features ? features->MemoryBytes() : 0) + voxel_cloud_.MemoryBytes() + sizeof(Target);
+         (features ? features->MemoryBytes() : 0) + voxel_cloud_.MemoryBytes() +
+         (sensor_view_ ? sensor_view_->MemoryBytes() : 0) + sizeof(Target);
 }
 
 }  // namespace mlsreg

@@ -413,7 +413,7 @@ class AutoRegistration {
 
   // Verified, with enough of the source over the target's data to need no global stage.
   bool Acceptable(const VerificationScore& score) const {
-    return score.verified() && score.covered_fraction() >= params_.accept_fraction;
+    return score.verified() && score.visible_covered_fraction() >= params_.accept_fraction;
   }
 
   VerificationScore Verify(const Matrix4& transform) const {

@@ -197,7 +197,8 @@ std::vector<ParameterSpec> MakeTable() {
       Row<&O::automatic, &AutoParams::accept_fraction>(
           "auto.accept_fraction", "auto-accept", "auto_accept_fraction", automatic, kClosed(0, 1),
           "auto: keep the start's verified result without a global stage when it lays this "
-          "share of the source over the target"),
+          "share of the source over the target (of the share the target's sensor could see, "
+          "when its sampling shows one)"),
       Row<&O::automatic, &AutoParams::candidate_iterations>(
           "auto.candidate_iterations", "auto-candidate-iterations", "auto_candidate_iterations",
           automatic, kClosed(1, 1000),

@@ -243,6 +243,7 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
   result->scales.spacing_p90 = scales.spacing_p90;
   result->scales.extent = scales.extent;
   result->scales.working_voxel = scales.working_voxel;
+  if (scales.sensor) result->scales.sensor = scales.sensor->position;
   if (reads_mls) result->scales.mls_radius = *resolved.mls.radius_d * d;
   for (const auto& [name, value] : requested.absolute_lengths) {
     result->scales.user_lengths.push_back({name, value, value / d});

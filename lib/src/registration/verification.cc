@@ -410,8 +410,12 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   double sum_squared = 0.0, sum_normalised = 0.0, sum_band = 0.0;
   Vec3 centre = Vec3::Zero();
   HitSamples(target, points, pose, coverage, caches, hits, threads);
+  const SensorView* view = target.sensor_view();
   for (std::size_t i = 0; i < points.size(); ++i) {
-    if (!hits[i].covered) continue;
+    if (!hits[i].covered) {
+      if (view && view->Hides(hits[i].x, coverage)) ++score.hidden;
+      continue;
+    }
     const Vec3& x = hits[i].x;
     state[i] = 1;
     ++score.covered;

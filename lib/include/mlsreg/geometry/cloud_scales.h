@@ -8,6 +8,7 @@
 
 #include "mlsreg/core/point_cloud.h"
 #include "mlsreg/geometry/kd_tree.h"
+#include "mlsreg/geometry/sensor_view.h"
 
 namespace mlsreg {
 
@@ -25,12 +26,16 @@ struct CloudScales {
   // the scene, robust to a few far outliers.
   double extent = 0.0;
   double working_voxel = 0.0;  // the coarse resolution: max(1 % extent, 2 median spacings)
+  // The scan's sensor, when its sampling shows one (FindSensor, at the viewpoint or the origin).
+  std::optional<SensorFinding> sensor;
 };
 
 // Measures the scales of `points` (indexed by `tree`): every point's nearest distinct neighbour
 // once, their mean the mean spacing (the same value as SamplingDistance), the percentiles from
-// a seeded sample of at most 20,000 of them (the same for any `threads`). A cloud with no two
+// a seeded sample of at most 20,000 of them (the same for any `threads`), and from the same sample
+// the sensor, looked for at `viewpoint` (the origin when none is known). A cloud with no two
 // distinct points has mean spacing 0.
-CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree, int threads = 1);
+CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree,
+                          const std::optional<Vec3>& viewpoint = std::nullopt, int threads = 1);
 
 }  // namespace mlsreg

@@ -14,6 +14,7 @@
 #include "mlsreg/geometry/kd_tree.h"
 #include "mlsreg/geometry/mls_patches.h"
 #include "mlsreg/geometry/noise_estimate.h"
+#include "mlsreg/geometry/sensor_view.h"
 #include "mlsreg/geometry/surface_analysis.h"
 #include "mlsreg/geometry/voxel_cloud.h"
 
@@ -90,6 +91,8 @@ class Target {
   const CloudScales& scales() const { return scales_; }
   // The cloud at its working voxel (scales().working_voxel), with normals and an index.
   const VoxelCloud& voxel_cloud() const { return voxel_cloud_; }
+  // What the scan's sensor saw, when the sampling shows a sensor (scales().sensor), else null.
+  const SensorView* sensor_view() const { return sensor_view_ ? &*sensor_view_ : nullptr; }
   const TargetOptions& options() const { return options_; }
   double build_seconds() const { return build_seconds_; }
   // The noise of the cloud, estimated once at build time (EstimateNoise).
@@ -123,6 +126,7 @@ class Target {
   double sampling_distance_ = 0.0;
   CloudScales scales_;
   VoxelCloud voxel_cloud_;
+  std::optional<SensorView> sensor_view_;
   TargetOptions options_;
   double build_seconds_ = 0.0;
   NoiseEstimate noise_;

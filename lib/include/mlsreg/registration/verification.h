@@ -108,8 +108,11 @@ std::string_view VerdictName(Verdict verdict);  // "verified", "too_little_overl
 const EnumNames& VerdictNames();                // wire enum "Verdict"
 
 struct VerificationScore {
-  int samples = 0;                  // source samples tried
-  int covered = 0;                  // samples with target data near them
+  int samples = 0;  // source samples tried
+  int covered = 0;  // samples with target data near them
+  // Samples not covered that the target's sensor could not have seen (behind what it saw, or
+  // where it saw nothing: SensorView); 0 when the target shows no sensor.
+  int hidden = 0;
   int inliers = 0;                  // covered samples on the surface
   double inlier_fraction = 0.0;     // inliers / covered: the share of the overlap explained
   double explained_fraction = 0.0;  // inliers / samples
@@ -156,6 +159,11 @@ struct VerificationScore {
   bool verified() const { return verdict == Verdict::kVerified; }
   // covered / samples: the share of the source the pose lays over the target's data.
   double covered_fraction() const { return samples > 0 ? double(covered) / samples : 0.0; }
+  // covered / (samples - hidden): the share of what the target's sensor could see of the source
+  // that the pose lays over the target's data (covered_fraction when no sensor is known).
+  double visible_covered_fraction() const {
+    return samples > hidden ? double(covered) / (samples - hidden) : 0.0;
+  }
   // "translation along (0.99, 0.11, 0.02)" or "rotation about (...)".
   std::string WorstDirectionText() const;
 };
