@@ -1,7 +1,7 @@
 // SensorView: what a scan's sensor saw, direction by direction, so that a point can be asked
 // whether that sensor could have seen it at all.
 //
-// A spinning LiDAR covers 55-80 % of the next scan when the two are aligned exactly: the rest
+// A street scan aligned exactly on the one before covers 44-89 % of it (tuning streets): the rest
 // lies behind parked cars, above its highest beam or in its blind ring. Counting those samples as
 // "not covered" makes a right street pose look like a partial one. SensorView keeps, for every
 // direction the sensor returned something in, the nearest range it returned there; a point is
