@@ -143,7 +143,9 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
           "  candidate %zu %-6s  %-19s overlap on surface %5.1f %%  RMSE %7.3f d  %3d its  "
           "%6.3f s%s\n",
           k, CandidateOriginName(c.origin),
-          c.in_start_basin ? std::string_view("start's basin") : VerdictName(c.score.verdict),
+          !c.in_start_basin                     ? VerdictName(c.score.verdict)
+          : c.origin == CandidateOrigin::kRival ? std::string_view("back at the result")
+                                                : std::string_view("start's basin"),
           100.0 * c.score.inlier_fraction, c.score.rmse_d, c.iterations, c.seconds,
           static_cast<int>(k) == a->chosen               ? "  <- chosen"
           : a->rival && static_cast<int>(k) == *a->rival ? "  <- rival: explains as much elsewhere"

@@ -18,16 +18,15 @@ constexpr double kRivalDistinctBands = 1.5;
 // ...and explains at least this share of the result's inliers.
 constexpr double kRivalInlierShare = 0.95;
 
-// Whether the probe `pose` (scored `probe`) is a rival of `result` (scored `score`). A pulled
-// probe is a voxel alignment that stopped short of where the data put it; it is another pose
-// only if it stays distinct after moving as far as its settling does (an open road: probes 1-2 m
-// along the road came back 0.06-0.22 m short of the result, pulled toward it).
-bool IsRival(const VerificationScore& probe, const Matrix4& pose, const VerificationScore& score,
-             const Matrix4& result, const VoxelCloud& source_voxels) {
+// Whether the probe (scored `probe`, `distance` from the result: the RMS displacement of the
+// source's voxel samples) is a rival of the result (scored `score`). A pulled probe is a voxel
+// alignment that stopped short of where the data put it; it is another pose only if it stays
+// distinct after moving as far as its settling does (an open road: probes 1-2 m along the road
+// came back 0.06-0.22 m short of the result, pulled toward it).
+bool IsRival(const VerificationScore& probe, double distance, const VerificationScore& score) {
   if (probe.verdict != Verdict::kVerified && probe.verdict != Verdict::kPulled) return false;
   if (probe.inliers < kRivalInlierShare * static_cast<double>(score.inliers)) return false;
-  return RmsDistanceBetween(source_voxels.points, result, pose) - probe.settle_displacement >
-         kRivalDistinctBands * score.inlier_distance;
+  return distance - probe.settle_displacement > kRivalDistinctBands * score.inlier_distance;
 }
 
 }  // namespace
@@ -52,10 +51,15 @@ RivalSearch SearchRival(const Matrix4& result, const VerificationScore& score,
       search.cancelled = true;
       break;
     }
-    VerificationScore probe_score = verify(probe.transform);
-    const bool rival = IsRival(probe_score, probe.transform, score, result, source_voxels);
+    // A probe back within kRivalDistinctBands of the result is no rival whatever its score
+    // (settling only brings it closer): it is not verified, and carries the result's score.
+    // Every probe on the tuning streets came back so.
+    const double distance = RmsDistanceBetween(source_voxels.points, result, probe.transform);
+    const bool returned = distance <= kRivalDistinctBands * score.inlier_distance;
+    VerificationScore probe_score = returned ? score : verify(probe.transform);
+    const bool rival = !returned && IsRival(probe_score, distance, score);
     search.probes.push_back({CandidateOrigin::kRival, from, probe.transform, 0, probe.iterations,
-                             std::move(probe_score), Seconds(t)});
+                             std::move(probe_score), Seconds(t), returned});
     if (rival) {
       search.rival = k;
       break;

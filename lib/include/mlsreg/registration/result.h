@@ -87,7 +87,8 @@ struct AutoCandidate {
   double seconds = 0.0;                   // its refinement and verification
   // kGlobal: its alignment reached the verified start's pose (within the coarse alignment's
   // final capture range of it), where it would have converged too: it stopped there, was not
-  // verified again, and `score` is the start's.
+  // verified again, and `score` is the start's. kRival: it came back to the result (within
+  // 1.5 verification bands), where it cannot be a rival: not verified, `score` is the result's.
   bool in_start_basin = false;
 };
 
