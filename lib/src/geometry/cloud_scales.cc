@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numeric>
 
+#include "mlsreg/core/quantile.h"
 #include "mlsreg/geometry/sampling.h"
 
 namespace mlsreg {
@@ -15,13 +16,6 @@ constexpr std::size_t kSpacingSamples = 20'000;
 // spreads most): measuring it was a tenth of a one-shot LiDAR registration.
 constexpr std::size_t kMeanSpacingSamples = 50'000;
 constexpr std::uint64_t kSpacingSeed = 0x5ca1e;
-
-double Percentile(std::vector<double>& values, double q) {
-  if (values.empty()) return 0.0;
-  const auto k = static_cast<std::ptrdiff_t>(q * static_cast<double>(values.size() - 1));
-  std::nth_element(values.begin(), values.begin() + k, values.end());
-  return values[static_cast<std::size_t>(k)];
-}
 
 }  // namespace
 
@@ -49,19 +43,19 @@ CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree,
   for (const double s : sampled) {
     if (s >= 0.0) spacing.push_back(s);
   }
-  scales.median_spacing = Percentile(spacing, 0.5);
-  scales.spacing_p90 = Percentile(spacing, 0.9);
+  scales.median_spacing = QuantileInPlace(spacing, 0.5);
+  scales.spacing_p90 = QuantileInPlace(spacing, 0.9);
 
   std::vector<double> coordinate(sample.size());
   Vec3 median;
   for (int axis = 0; axis < 3; ++axis) {
     for (std::size_t k = 0; k < sample.size(); ++k) coordinate[k] = points[sampled_points[k]][axis];
-    median[axis] = Percentile(coordinate, 0.5);
+    median[axis] = QuantileInPlace(coordinate, 0.5);
   }
   std::vector<double> radius(sample.size());
   for (std::size_t k = 0; k < sample.size(); ++k)
     radius[k] = (points[sampled_points[k]] - median).norm();
-  scales.extent = 2.0 * Percentile(radius, 0.95);
+  scales.extent = 2.0 * QuantileInPlace(radius, 0.95);
   scales.working_voxel = std::max(kWorkingVoxelPerExtent * scales.extent,
                                   kMinWorkingVoxelPerSpacing * scales.median_spacing);
   if (!(scales.working_voxel > 0.0)) scales.working_voxel = d;

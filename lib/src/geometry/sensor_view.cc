@@ -3,14 +3,10 @@
 #include <algorithm>
 #include <cmath>
 
+#include "mlsreg/core/quantile.h"
+
 namespace mlsreg {
 namespace {
-
-double Quantile(std::vector<double> values, double q) {
-  const auto k = static_cast<std::ptrdiff_t>(q * static_cast<double>(values.size() - 1));
-  std::nth_element(values.begin(), values.begin() + k, values.end());
-  return values[static_cast<std::size_t>(k)];
-}
 
 // Cells per cube side: coarse enough for any scan to stay in a few hundred thousand cells.
 constexpr int kMinCellsPerSide = 8;
@@ -45,12 +41,12 @@ std::optional<SensorFinding> FindSensor(const std::vector<Vec3>& points,
     covariance += (log_range[k] - mean_r) * (log_spacing[k] - mean_s);
     variance += (log_range[k] - mean_r) * (log_range[k] - mean_r);
   }
-  const double spread = std::exp(Quantile(log_range, 0.9) - Quantile(log_range, 0.1));
+  const double spread = std::exp(QuantileInPlace(log_range, 0.9) - QuantileInPlace(log_range, 0.1));
   if (!(variance > 0.0) || covariance / variance < kSensorMinSlope ||
       spread < kSensorMinRangeSpread) {
     return std::nullopt;
   }
-  return SensorFinding{candidate, Quantile(std::move(angle), 0.5)};
+  return SensorFinding{candidate, QuantileInPlace(angle, 0.5)};
 }
 
 SensorView SensorView::Build(const std::vector<Vec3>& points, const SensorFinding& sensor) {

@@ -5,6 +5,7 @@
 
 #include "icp_loop.h"
 #include "mlsreg/core/parallel_for.h"
+#include "mlsreg/core/quantile.h"
 #include "mlsreg/geometry/neighbor_cache.h"
 #include "mlsreg/solvers/rigid_motion.h"
 
@@ -131,9 +132,7 @@ double StartCapture(const VoxelCloud& target, const VoxelCloud& source, const Ma
         }
       },
       256);
-  const auto k = static_cast<std::ptrdiff_t>(kStartCapturePercentile * (distances.size() - 1));
-  std::nth_element(distances.begin(), distances.begin() + k, distances.end());
-  return std::clamp(distances[static_cast<std::size_t>(k)], final_capture,
+  return std::clamp(QuantileInPlace(distances, kStartCapturePercentile), final_capture,
                     std::max(final_capture, 0.5 * target_extent));
 }
 

@@ -8,6 +8,7 @@
 
 #include "absl/strings/str_format.h"
 #include "mlsreg/core/parallel_for.h"
+#include "mlsreg/core/quantile.h"
 #include "mlsreg/geometry/neighbor_cache.h"
 #include "mlsreg/geometry/noise_estimate.h"
 #include "mlsreg/geometry/weighted_covariance.h"
@@ -551,10 +552,7 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
     for (std::size_t i = 0; i < points.size(); ++i) {
       if (state[i]) sensitivity.push_back(std::abs(source_jacobians[i].dot(axis)));
     }
-    const auto top =
-        sensitivity.begin() + static_cast<std::ptrdiff_t>(0.99 * (sensitivity.size() - 1));
-    std::nth_element(sensitivity.begin(), top, sensitivity.end());
-    const double threshold = options.direction_sensitivity * *top;
+    const double threshold = options.direction_sensitivity * QuantileInPlace(sensitivity, 0.99);
     int agreeing = 0;
     for (std::size_t i = 0; i < points.size(); ++i) {
       if (!state[i] || !(std::abs(source_jacobians[i].dot(axis)) >= threshold)) continue;
