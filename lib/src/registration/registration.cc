@@ -153,13 +153,12 @@ PoseVerdict VerifyPoseSearchingRivals(const Target& target, const PointCloud& so
                                       const Matrix4& transform, int threads) {
   static const RegistrationOptions kDefaults;
   static const RegistrationCallbacks kNoCallbacks;
-  const KdTree tree(source.points);
   const double d = target.sampling_distance();
-  const NoiseEstimate noise = EstimateNoise(source.points, tree, d, {}, {}, {}, threads);
+  const double source_noise_d = EstimateSourceNoiseD(target, source, threads);
   RegistrationProblem problem{&target,    &source,       Orthonormalize(transform),
                               &kDefaults, &kNoCallbacks, internal::Clock::now()};
   problem.threads = std::max(1, threads);
-  problem.noise_levels = {target.noise().sigma_d * d, noise.sigma_d * d};
+  problem.noise_levels = {target.noise().sigma_d * d, source_noise_d * d};
   RegistrationResult result;
   result.transform = problem.initial;
   VerifyWithRivalSearch(problem, result);

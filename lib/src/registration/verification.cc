@@ -577,12 +577,16 @@ VerificationScore VerifyPose(const Target& target, const PointCloud& source,
                          {target.noise().sigma_d * d, source_noise_d * d}, {}, threads);
 }
 
+double EstimateSourceNoiseD(const Target& target, const PointCloud& source, int threads) {
+  const KdTree tree(source.points);
+  return EstimateNoise(source.points, tree, target.sampling_distance(), {}, {}, {}, threads)
+      .sigma_d;
+}
+
 VerificationScore VerifyPose(const Target& target, const PointCloud& source,
                              const Matrix4& transform, int threads) {
-  const KdTree tree(source.points);
-  const NoiseEstimate noise =
-      EstimateNoise(source.points, tree, target.sampling_distance(), {}, {}, {}, threads);
-  return VerifyPose(target, source, transform, noise.sigma_d, threads);
+  return VerifyPose(target, source, transform, EstimateSourceNoiseD(target, source, threads),
+                    threads);
 }
 
 Matrix4 MovedAlongWorstDirection(const VerificationScore& score, const Matrix4& transform,

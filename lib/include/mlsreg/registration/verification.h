@@ -200,6 +200,9 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
                                   const VerificationOptions& options = {}, int threads = 1,
                                   VerificationCaches* caches = nullptr);
 
+// The source's noise sigma in units of the target's d, estimated as Register estimates it.
+double EstimateSourceNoiseD(const Target& target, const PointCloud& source, int threads = 1);
+
 // Verifies `transform` (source to target) as Register verifies a result: the source's noise is
 // estimated and its voxel cloud at the target's working voxel scored.
 VerificationScore VerifyPose(const Target& target, const PointCloud& source,
