@@ -234,7 +234,8 @@ double CoherentResidual(std::span<const Pull> pulls, double radius, const Vec3& 
 // surface from it, each over the samples inside their band at the moved pose, ending early once
 // a step moves the samples by less than `tolerance`. Returns the RMS distance the samples in
 // `moved` (the inliers at the pose) travel. A right pose moves by its registration precision; a
-// pose turned or slid off the truth moves back toward it.
+// pose turned or slid off the truth moves back toward it. `hits` holds the samples at `pose`
+// on entry (the first step starts from them).
 constexpr int kSettleSteps = 6;
 // The settling ends when a step moves the samples by less than this share of a noise sigma (the
 // verdict compares the whole settling with about one sigma). Steps shrink 3-5x each near a pose
@@ -252,7 +253,7 @@ double SettleDisplacement(const Target& target, std::span<const Vec3> points,
     Matrix6 normal_matrix = Matrix6::Zero();
     Vector6 gradient = Vector6::Zero();
     int used = 0;
-    HitSamples(target, points, current, coverage, caches, hits, threads);
+    if (step_index > 0) HitSamples(target, points, current, coverage, caches, hits, threads);
     for (std::size_t i = 0; i < points.size(); ++i) {
       if (!hits[i].covered) continue;
       const Vec3& x = hits[i].x;
