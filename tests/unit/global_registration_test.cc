@@ -714,6 +714,15 @@ TEST(AutoMethodTest, PillarsThatDoNotRepeatLeaveNoRival) {
       std::count_if(report.candidates.begin(), report.candidates.end(),
                     [](const AutoCandidate& c) { return c.origin == CandidateOrigin::kRival; });
   EXPECT_EQ(probes, 4);
+  // A probe that came back to the result cannot be a rival: it was not verified again and
+  // carries the result's score (verified). One that ended elsewhere was verified, and did not.
+  int came_back = 0;
+  for (const AutoCandidate& c : report.candidates) {
+    if (c.origin != CandidateOrigin::kRival) continue;
+    came_back += c.in_start_basin;
+    EXPECT_EQ(c.score.verified(), c.in_start_basin) << VerdictName(c.score.verdict);
+  }
+  EXPECT_GE(came_back, 1);
   EXPECT_LT(result->transform.col(3).head<3>().norm(), 0.05);
 }
 

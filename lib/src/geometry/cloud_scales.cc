@@ -11,10 +11,6 @@ namespace mlsreg {
 namespace {
 
 constexpr std::size_t kSpacingSamples = 20'000;
-// The mean spacing d is the mean over every point up to this many, over a random subset of
-// this many beyond (its standard error is then under 0.5 % of d on a LiDAR scan, whose spacing
-// spreads most): measuring it was a tenth of a one-shot LiDAR registration.
-constexpr std::size_t kMeanSpacingSamples = 50'000;
 constexpr std::uint64_t kSpacingSeed = 0x5ca1e;
 
 }  // namespace
@@ -23,21 +19,16 @@ CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree,
                           const std::optional<Vec3>& viewpoint, int threads) {
   CloudScales scales;
   if (points.empty()) return scales;
-  const std::vector<std::uint32_t> measured =
-      RandomSubsample(points.size(), kMeanSpacingSamples, kSpacingSeed);
-  const std::vector<double> nearest = NearestDistinctDistances(points, tree, measured, threads);
-  const double d = MeanFoundDistance(nearest);  // SamplingDistance up to kMeanSpacingSamples
+  std::vector<std::uint32_t> all(points.size());
+  std::iota(all.begin(), all.end(), 0u);
+  const std::vector<double> nearest = NearestDistinctDistances(points, tree, all, threads);
+  const double d = MeanFoundDistance(nearest);  // = SamplingDistance(points, tree)
   scales.mean_spacing = d;
-  // The spacing's distribution from a subset of those (`sample` indexes `measured`).
   const std::vector<std::uint32_t> sample =
-      RandomSubsample(measured.size(), kSpacingSamples, kSpacingSeed);
-  std::vector<std::uint32_t> sampled_points(sample.size());
+      RandomSubsample(points.size(), kSpacingSamples, kSpacingSeed);
   std::vector<double> sampled(sample.size());
-  for (std::size_t k = 0; k < sample.size(); ++k) {
-    sampled_points[k] = measured[sample[k]];
-    sampled[k] = nearest[sample[k]];
-  }
-  scales.sensor = FindSensor(points, sampled_points, sampled, viewpoint.value_or(Vec3::Zero()));
+  for (std::size_t k = 0; k < sample.size(); ++k) sampled[k] = nearest[sample[k]];
+  scales.sensor = FindSensor(points, sample, sampled, viewpoint.value_or(Vec3::Zero()));
   std::vector<double> spacing;
   spacing.reserve(sample.size());
   for (const double s : sampled) {
@@ -49,12 +40,11 @@ CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree,
   std::vector<double> coordinate(sample.size());
   Vec3 median;
   for (int axis = 0; axis < 3; ++axis) {
-    for (std::size_t k = 0; k < sample.size(); ++k) coordinate[k] = points[sampled_points[k]][axis];
+    for (std::size_t k = 0; k < sample.size(); ++k) coordinate[k] = points[sample[k]][axis];
     median[axis] = QuantileInPlace(coordinate, 0.5);
   }
   std::vector<double> radius(sample.size());
-  for (std::size_t k = 0; k < sample.size(); ++k)
-    radius[k] = (points[sampled_points[k]] - median).norm();
+  for (std::size_t k = 0; k < sample.size(); ++k) radius[k] = (points[sample[k]] - median).norm();
   scales.extent = 2.0 * QuantileInPlace(radius, 0.95);
   scales.working_voxel = std::max(kWorkingVoxelPerExtent * scales.extent,
                                   kMinWorkingVoxelPerSpacing * scales.median_spacing);

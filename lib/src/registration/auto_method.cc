@@ -423,7 +423,9 @@ class AutoRegistration {
         [&](const Matrix4& from, int k) {
           return AlignCoarse(from, Stage::kRival, first + k, 0, params_.candidate_iterations);
         },
-        [&](const Matrix4& pose) { return Verify(pose); });
+        [&](const Matrix4& pose, const VerificationOptions& options) {
+          return Verify(pose, options);
+        });
     for (AutoCandidate& probe : search.probes) report_.candidates.push_back(std::move(probe));
     report_.timings.rivals = search.seconds;
     if (search.cancelled) return Cancelled(std::move(result));
@@ -439,8 +441,9 @@ class AutoRegistration {
     return score.verified() && score.visible_covered_fraction() >= params_.accept_fraction;
   }
 
-  VerificationScore Verify(const Matrix4& transform) const {
-    return VerifyAlignment(target_, source_voxels_, transform, problem_.noise_levels, {},
+  VerificationScore Verify(const Matrix4& transform,
+                           const VerificationOptions& options = {}) const {
+    return VerifyAlignment(target_, source_voxels_, transform, problem_.noise_levels, options,
                            problem_.threads, &verification_caches_);
   }
 

@@ -109,11 +109,11 @@ void VerifyWithRivalSearch(const RegistrationProblem& problem, RegistrationResul
   const VoxelCloud samples = BuildVoxelCloud(problem.source->points, target.voxel_cloud().voxel,
                                              problem.source->viewpoint, problem.threads);
   VerificationCaches caches;
-  const auto verify = [&](const Matrix4& pose) {
-    return VerifyAlignment(target, samples, pose, problem.noise_levels, {}, problem.threads,
+  const auto verify = [&](const Matrix4& pose, const VerificationOptions& options) {
+    return VerifyAlignment(target, samples, pose, problem.noise_levels, options, problem.threads,
                            &caches);
   };
-  VerificationScore score = verify(result.transform);
+  VerificationScore score = verify(result.transform, {});
   if (internal::SearchesForRival(score)) {
     const int iterations = result.iterations;
     const internal::RivalSearch search = internal::SearchRival(

@@ -34,10 +34,12 @@ struct RivalSearch {
 
 // Searches for a rival of `result`, verified with `score` on `source_voxels` (the source's voxel
 // cloud at the target's working voxel). `align(from, k)` aligns the voxel clouds from `from`
-// (the k-th probe); `verify(pose)` scores a pose as `score` was scored.
+// (the k-th probe); `verify(pose, options)` scores a pose as `score` was scored, with `options`.
+using VerifyWith =
+    std::function<VerificationScore(const Matrix4&, const VerificationOptions& options)>;
 RivalSearch SearchRival(const Matrix4& result, const VerificationScore& score,
                         const VoxelCloud& source_voxels, double working_voxel,
                         const std::function<RegistrationResult(const Matrix4&, int)>& align,
-                        const std::function<VerificationScore(const Matrix4&)>& verify);
+                        const VerifyWith& verify);
 
 }  // namespace mlsreg::internal

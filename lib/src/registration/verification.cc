@@ -237,11 +237,6 @@ double CoherentResidual(std::span<const Pull> pulls, double radius, const Vec3& 
 // pose turned or slid off the truth moves back toward it. `hits` holds the samples at `pose`
 // on entry (the first step starts from them).
 constexpr int kSettleSteps = 6;
-// The settling ends when a step moves the samples by less than this share of a noise sigma (the
-// verdict compares the whole settling with about one sigma). Steps shrink 3-5x each near a pose
-// (a tuning street: 0.88, 0.21, 0.04 sigma), so what is left then is about 1 % of a sigma; at
-// 1 % instead of 5 % every settling ran all six steps.
-constexpr double kSettleTolerancePerNoise = 0.05;
 template <typename BandOf>
 double SettleDisplacement(const Target& target, std::span<const Vec3> points,
                           std::span<const std::uint8_t> state, std::span<SampleCaches> caches,
@@ -465,7 +460,7 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
     const double noise_sigma = score.inlier_distance / options.band_per_noise;
     score.settle_displacement = SettleDisplacement(
         target, points, state, caches, hits, threads, pose, centre, lever, coverage,
-        std::max(kSettleTolerancePerNoise * noise_sigma, 1e-9 * lever), band_of);
+        std::max(options.settle_tolerance_sigmas * noise_sigma, 1e-9 * lever), band_of);
   }
   // Pass 3: how precisely the agreeing samples fix each direction of motion. The point-to-plane
   // information of a set of samples along a direction (the sum of (J . axis)^2, rotations in

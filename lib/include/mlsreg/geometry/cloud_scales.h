@@ -19,8 +19,7 @@ inline constexpr double kWorkingVoxelPerExtent = 0.01;
 inline constexpr double kMinWorkingVoxelPerSpacing = 2.0;
 
 struct CloudScales {
-  // d: mean nearest-neighbour distance (paper Eq. 11), over at most 50,000 random points
-  double mean_spacing = 0.0;
+  double mean_spacing = 0.0;    // d: mean nearest-neighbour distance (paper Eq. 11)
   double median_spacing = 0.0;  // of the nearest-neighbour distances
   double spacing_p90 = 0.0;     // 90th percentile: the sparse regions
   // Twice the 95th percentile of the distances from the component-wise median point: the size of
