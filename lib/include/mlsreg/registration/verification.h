@@ -89,8 +89,7 @@ struct VerificationOptions {
   // The settling ends once a step moves the samples by less than this many noise sigmas. Steps
   // shrink 3-5x each near a pose (a tuning street: 0.88, 0.21, 0.04 sigma), so what is left then
   // is about 1 % of a sigma; at 0.01 every settling ran all six steps. A rival probe's settling
-  // is subtracted from its distance to the result (rival_search.h) and runs to 0.01: a probe
-  // along a corridor crawls back by a tenth of a sigma per step.
+  // is subtracted from its distance to the result (rival_search.h) and runs to 0.01.
   double settle_tolerance_sigmas = 0.05;
 };
 
