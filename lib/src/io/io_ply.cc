@@ -510,8 +510,8 @@ absl::Status ReadBinaryElement(const PlyElement& element, const PlyHeader& heade
   PointValues values{};
   if (!HasLists(element)) {
     // Fixed-size records, all inside the file (checked above): each value decoded where it
-    // lies. A tenth of the time of the general path below, which a LiDAR scan's 120k points
-    // made a tenth of a registration.
+    // lies, with no bounds check or status per value. (Reading two 126k-point LiDAR scans took
+    // 7 % of a registration, 1 % with this and DecodeScalar's fixed-size copies.)
     struct Field {
       std::size_t offset;
       const PlyProperty* property;
