@@ -4,6 +4,7 @@
 
 #include <array>
 #include <memory>
+#include <numbers>
 
 #include "mlsreg/geometry/feature_cloud.h"
 #include "mlsreg/geometry/mls_patches.h"
@@ -300,6 +301,72 @@ void BM_TargetBuildThreads(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * p.target->cloud().size());
 }
 BENCHMARK(BM_TargetBuildThreads)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Scene scale: the first KITTI 00 pair of ../shared/data/real (two 124k-point Velodyne scans,
+// 3.6 m apart), one thread, defaults, as `mlsreg register` runs it after reading the files.
+// Argument 0: the target's build alone; 1: the build and method auto from an odometry-like prior
+// (the truth moved by 5 degrees and 1 m, as bench/lidar_peers.py's prior). Skipped when the data
+// is not there.
+struct LidarPair {
+  PointCloud source, target;
+  Matrix4 truth = Matrix4::Identity(), prior = Matrix4::Identity();
+  bool found = false;
+};
+
+const LidarPair& Kitti() {
+  static const LidarPair pair = [] {
+    LidarPair p;
+    const std::string dir =
+        std::string(MLSREG_SOURCE_DIR) + "/../shared/data/real/kitti00_f0000-0015/";
+    auto manifest = ReadManifest(dir + "pairs.csv");
+    if (!manifest.ok() || manifest->problems.empty()) return p;
+    const RegistrationProblem& problem = manifest->problems.front();
+    auto source = ReadPointCloud(problem.source_path);
+    auto target = ReadPointCloud(problem.target_path);
+    if (!source.ok() || !target.ok() || !problem.ground_truth) return p;
+    p.source = *std::move(source);
+    p.target = *std::move(target);
+    p.truth = *problem.ground_truth;
+    Matrix4 moved = Matrix4::Identity();
+    moved.topLeftCorner<3, 3>() =
+        Eigen::AngleAxisd(5.0 * std::numbers::pi / 180.0, Vec3(1, 2, 3).normalized())
+            .toRotationMatrix();
+    moved.topRightCorner<3, 1>() = Vec3(0.6, 0.8, 0.0);  // 1 m
+    p.prior = moved * p.truth;
+    p.found = true;
+    return p;
+  }();
+  return pair;
+}
+
+void BM_LidarOneShot(benchmark::State& state) {
+  const LidarPair& p = Kitti();
+  if (!p.found) {
+    state.SkipWithError("../shared/data/real/kitti00_f0000-0015 not found");
+    return;
+  }
+  const bool register_too = state.range(0) == 1;
+  RegistrationOptions options;  // defaults: method auto
+  double translation_error = 0.0;
+  bool verified = false;
+  for (auto _ : state) {
+    auto target = Target::Build(p.target);
+    if (!register_too) {
+      benchmark::DoNotOptimize(target);
+      continue;
+    }
+    auto result = Register(**target, p.source, p.prior, options);
+    translation_error =
+        (result->transform.topRightCorner<3, 1>() - p.truth.topRightCorner<3, 1>()).norm();
+    verified = result->verification && result->verification->verified();
+    benchmark::DoNotOptimize(result);
+  }
+  if (register_too) {
+    state.counters["translation_error_m"] = translation_error;
+    state.counters["verified"] = verified ? 1.0 : 0.0;
+  }
+}
+BENCHMARK(BM_LidarOneShot)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 // Adversarial inputs: a cluster of 40,000 identical points (plus two outliers), which made every
 // neighbourhood the whole cloud. Argument 0: the whole target build; 1: the same build told to
