@@ -351,11 +351,19 @@ void BM_LidarOneShot(benchmark::State& state) {
   bool verified = false;
   for (auto _ : state) {
     auto target = Target::Build(p.target);
+    if (!target.ok()) {
+      state.SkipWithError(std::string(target.status().message()).c_str());
+      return;
+    }
     if (!register_too) {
       benchmark::DoNotOptimize(target);
       continue;
     }
     auto result = Register(**target, p.source, p.prior, options);
+    if (!result.ok()) {
+      state.SkipWithError(std::string(result.status().message()).c_str());
+      return;
+    }
     translation_error =
         (result->transform.topRightCorner<3, 1>() - p.truth.topRightCorner<3, 1>()).norm();
     verified = result->verification && result->verification->verified();
