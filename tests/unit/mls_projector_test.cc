@@ -210,5 +210,42 @@ TEST(MlsProjectorTest, WarmStartOnTangentPlaneAgreesWithColdStart) {
   }
 }
 
+// A query walking slowly over a sphere (as a sample does in ICP's fine phase) keeps its
+// neighbourhood: the projection matches the one that searches the tree each time to rounding, the
+// neighbourhood is gathered again only after the walk left its margin, and the point lands on the
+// sphere.
+TEST(MlsProjectorTest, KeptNeighborhoodGivesTheSameProjectionWithFewerSearches) {
+  const PointCloud sphere = SampleSphere(20000, 1.0, -2.0, 31);
+  const KdTree tree(sphere.points);
+  const double d = SamplingDistance(sphere.points, tree);
+  const double r = 5.0 * d;
+  const MlsProjector projector(sphere.points, tree, OptionsWithRadius(r));
+  MlsProjector::Workspace ws;
+  KeptNeighborhood kept;
+  // 200 steps of 0.02 r along a great circle, 0.05 d off the surface (where a warm start lies).
+  const double step = 0.02 * r;
+  int gathers = 0;
+  Vec3 last_center = Vec3::Constant(1e9);
+  for (int i = 0; i < 200; ++i) {
+    const double angle = i * step;
+    const Vec3 query = (1.0 + 0.05 * d) * Vec3(std::cos(angle), std::sin(angle), 0.0);
+    const MlsProjection with_kept = projector.ProjectFrom(query, ws, &kept);
+    const MlsProjection searched = projector.ProjectFrom(query, ws);
+    ASSERT_EQ(with_kept.status, ProjectionStatus::kOk);
+    ASSERT_EQ(searched.status, ProjectionStatus::kOk);
+    EXPECT_LT((with_kept.point - searched.point).norm(), 1e-12);
+    EXPECT_GT(with_kept.normal.dot(searched.normal), 1.0 - 1e-12);
+    EXPECT_NEAR(with_kept.point.norm(), 1.0, 1e-3);
+    if ((kept.center - last_center).norm() > 0.0) ++gathers;
+    last_center = kept.center;
+    // Every sample in the support of the projected point is in the kept neighbourhood.
+    EXPECT_LE((with_kept.point - kept.center).norm() + r, kept.reach * (1.0 + 1e-12));
+  }
+  // The walk covers 4 r; a margin of 0.1 r lasts about 5 steps (the gather's centre is the
+  // first iterate, so a step can use up to twice its length of the margin).
+  EXPECT_LE(gathers, 200 / 2);
+  EXPECT_GE(gathers, 200 / 10);
+}
+
 }  // namespace
 }  // namespace mlsreg

@@ -88,6 +88,7 @@ void MlsCorrespondenceFinder::Find(std::span<const Vec3> queries, std::span<Corr
     anchors_.assign(queries.size(), MlsPatches::AnchorCache{});
     anchors_of_ = patches_;
   }
+  if (!patches_ && kept_.size() != queries.size()) kept_.assign(queries.size(), {});
   last_iterations_ = 0;
   if (threads_state_.size() < static_cast<std::size_t>(threads_)) threads_state_.resize(threads_);
   for (ThreadState& state : threads_state_) state.iterations = 0;
@@ -102,13 +103,20 @@ void MlsCorrespondenceFinder::Find(std::span<const Vec3> queries, std::span<Corr
 
 MlsProjection MlsCorrespondenceFinder::ProjectOne(const Vec3& query, const Vec3* start,
                                                   MlsProjector::Workspace& workspace,
-                                                  MlsPatches::AnchorCache& anchors) const {
+                                                  MlsPatches::AnchorCache& anchors,
+                                                  KeptNeighborhood* kept) const {
   const bool seed = far_queries_ != FarQueryPolicy::kDrop;
   if (patches_) {
     return start ? patches_->ProjectNear(query, *start, seed, &anchors)
                  : patches_->Project(query, seed, &anchors);
   }
-  return start ? projector_.ProjectFrom(*start, workspace) : projector_.Project(query, workspace);
+  const MlsProjection projection = projector_.ProjectFrom(start ? *start : query, workspace, kept);
+  // A neighbourhood in a dense cluster is not worth its memory for every sample.
+  if (kept && kept->samples.capacity() > kMaxKeptSamples) {
+    RadiusNeighbors().swap(kept->samples);
+    kept->reach = -1.0;
+  }
+  return projection;
 }
 
 bool MlsCorrespondenceFinder::FindRange(std::span<const Vec3> queries,
@@ -132,7 +140,14 @@ bool MlsCorrespondenceFinder::FindRange(std::span<const Vec3> queries,
                       !previous.seeded_from_nearest_sample &&
                       (q - previous.point).squaredNorm() < radius_ * radius_;
     const Vec3 start = q - (q - previous.point).dot(previous.normal) * previous.normal;
-    const MlsProjection projection = ProjectOne(q, warm ? &start : nullptr, workspace, anchors_[i]);
+    // A query still travelling (farther than the kept margin since its last projection) would
+    // outrun any neighbourhood it kept: it searches the tree alone until it slows down.
+    const bool keeps =
+        !patches_ && warm &&
+        (start - previous.point).squaredNorm() <
+            MlsProjector::kKeptMargin * MlsProjector::kKeptMargin * radius_ * radius_;
+    const MlsProjection projection =
+        ProjectOne(q, warm ? &start : nullptr, workspace, anchors_[i], keeps ? &kept_[i] : nullptr);
     iterations += projection.iterations;
     Correspondence& c = out[i];
     c.point = projection.point;

@@ -1,5 +1,6 @@
 #include "mlsreg/geometry/mls_projector.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "mlsreg/geometry/wendland.h"
@@ -30,15 +31,20 @@ MlsProjection MlsProjector::Project(const Vec3& query, Workspace& workspace) con
   return ProjectFrom(query, workspace);
 }
 
-ProjectionStatus MlsProjector::Fit(const Vec3& s, Workspace& ws, int& neighbors) const {
+ProjectionStatus MlsProjector::Fit(const Vec3& s, const RadiusNeighbors& candidates, Workspace& ws,
+                                   int& neighbors) const {
   const double r = options_.radius;
   // Lines 4-7: Wendland weights around s, weighted mean and weighted PCA.
-  const std::size_t n = ws.candidates.size();
+  const std::size_t n = candidates.size();
   if (ws.weights.size() < n) ws.weights.resize(n);
+  const double r_squared = r * r;
   WeightedCovariance covariance(s);
   for (std::size_t j = 0; j < n; ++j) {
-    const Vec3& q = points_[ws.candidates[j].first];
-    const double w = WendlandWeight((q - s).norm(), r);
+    const Vec3& q = points_[candidates[j].first];
+    const double distance_squared = (q - s).squaredNorm();
+    // Outside the support (a kept neighbourhood's margin): no square root needed.
+    const double w =
+        distance_squared < r_squared ? WendlandWeight(std::sqrt(distance_squared), r) : 0.0;
     ws.weights[j] = w;
     if (w <= 0.0) continue;
     covariance.Add(q, w);
@@ -61,7 +67,7 @@ ProjectionStatus MlsProjector::Fit(const Vec3& s, Workspace& ws, int& neighbors)
   const double inv_r = 1.0 / r;
   for (std::size_t j = 0; j < n; ++j) {
     if (ws.weights[j] <= 0.0) continue;
-    const Vec3 local = (points_[ws.candidates[j].first] - fit.origin) * inv_r;
+    const Vec3 local = (points_[candidates[j].first] - fit.origin) * inv_r;
     height_fit.Add(local.dot(frame.tangent_u), local.dot(frame.tangent_v), local.dot(frame.normal),
                    ws.weights[j]);
   }
@@ -69,31 +75,39 @@ ProjectionStatus MlsProjector::Fit(const Vec3& s, Workspace& ws, int& neighbors)
   return ProjectionStatus::kOk;
 }
 
-MlsProjection MlsProjector::ProjectFrom(const Vec3& start, Workspace& ws) const {
+MlsProjection MlsProjector::ProjectFrom(const Vec3& start, Workspace& ws,
+                                        KeptNeighborhood* kept) const {
   const double r = options_.radius;
-  const double gather_radius = r * (1.0 + options_.search_margin);
-  const double reuse_distance = r * options_.search_margin;
+  const double margin =
+      kept ? std::max(options_.search_margin, kKeptMargin) : options_.search_margin;
+  const double gather_radius = r * (1.0 + margin);
+  // Where the candidates live, and whether they cover the support of an iterate.
+  KeptNeighborhood& gathered = kept ? *kept : ws.gathered;
+  if (!kept) gathered.reach = -1.0;
+  const auto covers = [&](const Vec3& s) {
+    return gathered.reach >= 0.0 && (s - gathered.center).norm() + r <= gathered.reach;
+  };
+  const auto gather = [&](const Vec3& s) {
+    tree_.Radius(s, gather_radius, gathered.samples);
+    gathered.center = s;
+    // A search that hit its cap holds only the nearest samples: no reach to rely on.
+    gathered.reach = gathered.samples.size() < kMaxRadiusNeighbors ? gather_radius : r;
+  };
 
   MlsProjection result;
   Vec3 s = start;  // the iterate of Algorithm 1
-  Vec3 gathered_at = start;
-  bool have_candidates = false;
   bool reseeded = false;
 
   for (int iteration = 1; iteration <= options_.max_iterations; ++iteration) {
     result.iterations = iteration;
-    if (!have_candidates || (s - gathered_at).norm() > reuse_distance) {
-      tree_.Radius(s, gather_radius, ws.candidates);
-      gathered_at = s;
-      have_candidates = true;
-    }
-    const ProjectionStatus status = Fit(s, ws, result.neighbors);
+    if (!covers(s)) gather(s);
+    const ProjectionStatus status = Fit(s, gathered.samples, ws, result.neighbors);
     if (status == ProjectionStatus::kTooFewNeighbors && iteration == 1 && !reseeded &&
         options_.seed_far_queries_from_nearest_sample && tree_.size() > 0) {
       // The query is too far from the target to start Algorithm 1: start from the closest
       // target sample. This costs one iteration of the budget.
       s = points_[tree_.Nearest(s).index];
-      have_candidates = false;
+      gathered.reach = -1.0;
       reseeded = true;
       result.seeded_from_nearest_sample = true;
       continue;

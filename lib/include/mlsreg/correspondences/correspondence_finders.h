@@ -73,8 +73,9 @@ class MlsCorrespondenceFinder final : public CorrespondenceFinder {
   bool FindRange(std::span<const Vec3> queries, std::span<Correspondence> out, std::size_t begin,
                  std::size_t end, ThreadState& state);
   // The projection of `query`, from `start` when warm.
+  // The exact projection keeps the query's neighbourhood in `kept` for its next projection.
   MlsProjection ProjectOne(const Vec3& query, const Vec3* start, MlsProjector::Workspace& workspace,
-                           MlsPatches::AnchorCache& anchors) const;
+                           MlsPatches::AnchorCache& anchors, KeptNeighborhood* kept) const;
   // Builds the patches this finder needs when the target's do not fit; false when stopped.
   bool EnsurePatches();
 
@@ -92,6 +93,10 @@ class MlsCorrespondenceFinder final : public CorrespondenceFinder {
   // Per query: the patches' anchors nearest its last projection (valid for anchors_of_ only).
   std::vector<MlsPatches::AnchorCache> anchors_;
   const MlsPatches* anchors_of_ = nullptr;
+  // Per query: the target samples around its last exact projection (MlsProjector::ProjectFrom),
+  // dropped when larger than kMaxKeptSamples.
+  std::vector<KeptNeighborhood> kept_;
+  static constexpr std::size_t kMaxKeptSamples = 1024;
   std::vector<ProjectionStatus> status_;
   long last_iterations_ = 0;
 };

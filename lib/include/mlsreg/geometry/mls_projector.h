@@ -66,11 +66,26 @@ struct MlsLocalFit {
   HeightField height;
 };
 
+// Target samples gathered once around a point and kept for later projections nearby: every
+// sample within `reach` of `center` is listed (in search order). An ICP loop's fine phase moves
+// each query by a small fraction of the support radius per iteration, so a query keeping its
+// neighbourhood, gathered a little wider than the support, finds its support there for many
+// iterations instead of searching the tree each time. The projection is the same either way:
+// samples beyond the support weigh nothing.
+struct KeptNeighborhood {
+  Vec3 center = Vec3::Zero();
+  double reach = -1.0;  // negative: empty
+  RadiusNeighbors samples;
+};
+
 class MlsProjector {
  public:
+  // How much wider than the support radius a kept neighbourhood is gathered (a fraction of r).
+  static constexpr double kKeptMargin = 0.1;
+
   // Scratch buffers for one thread. Reusing one keeps projections allocation-free.
   struct Workspace {
-    RadiusNeighbors candidates;
+    KeptNeighborhood gathered;  // a projection's own neighbourhood, when it keeps none
     std::vector<double> weights;
     // The fit of the last projection's final iteration (valid when its status is kOk): the
     // local surface at the projected point.
@@ -88,7 +103,10 @@ class MlsProjector {
   // Algorithm 1 started at `start` instead of the query (warm start). A good start is the query
   // projected onto the tangent plane of its previous projection: it keeps the query's tangential
   // position while skipping the iterations that walk onto the surface.
-  MlsProjection ProjectFrom(const Vec3& start, Workspace& workspace) const;
+  // With `kept`, the iterate's support comes from that neighbourhood while it covers it, and the
+  // neighbourhood is gathered again (kKeptMargin wider than the support) where it does not.
+  MlsProjection ProjectFrom(const Vec3& start, Workspace& workspace,
+                            KeptNeighborhood* kept = nullptr) const;
 
   const MlsOptions& options() const { return options_; }
   void set_seed_far_queries_from_nearest_sample(bool seed) {
@@ -96,9 +114,10 @@ class MlsProjector {
   }
 
  private:
-  // Lines 4-9 at the iterate `s` over the gathered `workspace.candidates`, into
-  // `workspace.last_fit`; kOk, kTooFewNeighbors (< 3 weighted samples) or kDegenerate.
-  ProjectionStatus Fit(const Vec3& s, Workspace& workspace, int& neighbors) const;
+  // Lines 4-9 at the iterate `s` over the gathered `candidates`, into `workspace.last_fit`; kOk,
+  // kTooFewNeighbors (< 3 weighted samples) or kDegenerate.
+  ProjectionStatus Fit(const Vec3& s, const RadiusNeighbors& candidates, Workspace& workspace,
+                       int& neighbors) const;
 
   const std::vector<Vec3>& points_;
   const KdTree& tree_;
