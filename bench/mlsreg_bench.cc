@@ -120,6 +120,41 @@ BENCHMARK(BM_MlsPatchProjectionWarm)
     ->Args({8, 1})
     ->Unit(benchmark::kMicrosecond);
 
+// An ICP fine phase's exact projections: the 2,000 queries walk 20 steps of 0.005 r each in a
+// fixed direction (about how far a sample moves per fine iteration, docs/evaluation.md), each
+// projection warm-started on its previous projection's tangent plane as the MLS correspondence
+// finder does. Argument 1: every query keeps its neighbourhood (KeptNeighborhood); 0: the tree is
+// searched at every projection. r = 5 d.
+void BM_MlsFineWalk(benchmark::State& state) {
+  const BunnyPair& p = Pair();
+  MlsOptions options;
+  options.radius = 5.0 * p.target->sampling_distance();
+  const MlsProjector projector(p.target->points(), p.target->tree(), options);
+  const bool keep = state.range(0) != 0;
+  constexpr int kSteps = 20;
+  const Vec3 step = Vec3(1.0, 0.5, -0.3).normalized() * (0.005 * options.radius);
+  MlsProjector::Workspace workspace;
+  std::vector<KeptNeighborhood> kept(p.queries.size());
+  std::vector<MlsProjection> previous(p.queries.size());
+  for (auto _ : state) {
+    for (KeptNeighborhood& k : kept) k.reach = -1.0;
+    for (std::size_t i = 0; i < p.queries.size(); ++i) {
+      previous[i] = projector.Project(p.queries[i], workspace);
+    }
+    for (int s = 1; s <= kSteps; ++s) {
+      for (std::size_t i = 0; i < p.queries.size(); ++i) {
+        const Vec3 q = p.queries[i] + s * step;
+        const MlsProjection& last = previous[i];
+        const Vec3 start = q - (q - last.point).dot(last.normal) * last.normal;
+        previous[i] = projector.ProjectFrom(start, workspace, keep ? &kept[i] : nullptr);
+      }
+    }
+    benchmark::DoNotOptimize(previous.data());
+  }
+  state.SetItemsProcessed(state.iterations() * p.queries.size() * kSteps);
+}
+BENCHMARK(BM_MlsFineWalk)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
 // Argument 0: every part on first use (the library's default: a one-shot registration), 1: every
 // part with the target (surface, patch fits, features), 2: as a served target (surface and
 // features with the target, patch fits on first use). Counter bytes_per_point:
