@@ -12,10 +12,7 @@ bool WeightedCovariance::Finalize(LocalFrame& frame) const {
   if (count_ < 3 || !(sum_w_ > 0.0)) return false;
   const Vec3 mean_offset = sum_wd_ / sum_w_;
   const Eigen::Matrix3d covariance = sum_wdd_ / sum_w_ - mean_offset * mean_offset.transpose();
-  // The closed form for 3 x 3 (Eigen's computeDirect): a few times faster than the iterative QR,
-  // and as accurate for the well-separated smallest eigenvalue a surface sample has.
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
-  solver.computeDirect(covariance);
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance);
   if (solver.info() != Eigen::Success) return false;
   Vec3 lambda = solver.eigenvalues().cwiseMax(0.0);
   if (!(lambda[2] > 0.0) || lambda[1] <= kDegenerateRatio * lambda[2]) return false;
