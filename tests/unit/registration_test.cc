@@ -144,6 +144,44 @@ TEST(RegistrationTest, MlsBeatsClosestPointOnNoisySamples) {
   EXPECT_LT(mls_error, cp_error);
 }
 
+TEST(RegistrationTest, MlsFinePhaseProjectsOnlySamplesThatCanStillBeMatched) {
+  // MLS-SICP at 1 d of noise, the source reaching a sixth beyond the target: the coarse phase
+  // (patches, far queries seeded from their nearest sample) converges, then the fine phase
+  // drops the samples whose partners are refused (first under the last coarse partners, then
+  // under its own first match's) and keeps counting them as they were. Every iteration's counts
+  // sum to the samples; no fine iteration matches more than the first (the first with far
+  // queries dropped, so invalid); the pose is the truth's.
+  const double d =
+      Target::Build(SampleBumpySurface(20'000, -1.0, 1.0, 1)).value()->sampling_distance();
+  const Matrix4 truth = RandomPerturbation(8.0, 0.05, Vec3::Zero(), 5);
+  auto target = Target::Build(SampleBumpySurface(20'000, -1.0, 1.0, 1, 1.0 * d));
+  ASSERT_TRUE(target.ok());
+  PointCloud source;
+  const Matrix4 inverse = truth.inverse();
+  for (const Vec3& p : SampleBumpySurface(12'000, -0.9, 1.2, 2, 1.0 * d).points) {
+    source.points.push_back(inverse.topLeftCorner<3, 3>() * p + inverse.topRightCorner<3, 1>());
+  }
+  RegistrationOptions options;
+  options.method = Method::kMlsSicp;
+  const Matrix4 initial = RandomPerturbation(3.0, 3.0 * d, Vec3::Zero(), 6) * truth;
+  auto result = Register(**target, source, initial, options);
+  ASSERT_TRUE(result.ok()) << result.status();
+  std::size_t fine = 0;
+  while (fine < result->trace.size() && result->trace[fine].counts.invalid == 0) ++fine;
+  ASSERT_GE(fine, 1u) << "no coarse phase";
+  ASSERT_LT(fine + 2, result->trace.size()) << "no fine phase of 3 iterations";
+  const int first_fine_matched = result->trace[fine].counts.matched;
+  EXPECT_GT(result->trace[fine].counts.invalid, result->num_samples / 40);  // beyond the target
+  for (std::size_t i = 0; i < result->trace.size(); ++i) {
+    SCOPED_TRACE(i);
+    EXPECT_EQ(result->trace[i].counts.total(), result->num_samples);
+    if (i > fine) EXPECT_LE(result->trace[i].counts.matched, first_fine_matched);
+  }
+  const PoseError e = EvaluatePose(source.points, result->transform, truth, d);
+  EXPECT_LT(e.rmse_d, 0.5);
+  EXPECT_LT(e.rotation_deg, 0.25);
+}
+
 TEST(RegistrationTest, CoarsePhaseFiltersFollowTheirPolicy) {
   // A noisy pair 10 degrees off. The fine phase always rejects by normal and by curvature; the
   // coarse phase (far queries seeded from samples) by both by default (the paper), by normal

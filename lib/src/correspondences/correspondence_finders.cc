@@ -61,6 +61,29 @@ void MlsCorrespondenceFinder::Refine() {
   }
 }
 
+namespace {
+
+// Keeps v[kept[0]], v[kept[1]], ... at the front (kept ascending) and drops the rest; a vector
+// not yet sized for the queries stays as it is.
+template <typename T>
+void KeepEntries(std::vector<T>& v, std::span<const std::uint32_t> kept, std::size_t queries) {
+  if (v.size() != queries) return;
+  for (std::size_t k = 0; k < kept.size(); ++k) {
+    if (kept[k] != k) v[k] = std::move(v[kept[k]]);
+  }
+  v.resize(kept.size());
+}
+
+}  // namespace
+
+void MlsCorrespondenceFinder::KeepOnly(std::span<const std::uint32_t> kept) {
+  const std::size_t queries = previous_.size();
+  KeepEntries(previous_, kept, queries);
+  KeepEntries(status_, kept, queries);
+  KeepEntries(anchors_, kept, queries);
+  KeepEntries(kept_, kept, queries);
+}
+
 bool MlsCorrespondenceFinder::EnsurePatches() {
   if (projection_ == MlsProjectionKind::kExact || patches_) return true;
   MlsOptions options = projector_.options();

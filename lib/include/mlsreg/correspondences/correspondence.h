@@ -41,6 +41,10 @@ class CorrespondenceFinder {
   // curvature filter compares like with like: the scale of this policy's partners (MLS: its
   // support radius); 0 for the target's own analysis radius (its normals and curvature).
   virtual double analysis_radius() const { return 0.0; }
+  // The registration goes on with only these queries (indices into the last Find's, ascending):
+  // the next Find gets them in this order. Finders that keep per-query state (warm starts)
+  // keep theirs for these queries; stateless finders have nothing to do.
+  virtual void KeepOnly(std::span<const std::uint32_t> /*kept*/) {}
 
   // Finders whose queries are expensive (MLS) ask this while they search and return early, with
   // the rest of `out` unset, once it says stop; the caller then asks it too and stops.

@@ -53,6 +53,7 @@ class MlsCorrespondenceFinder final : public CorrespondenceFinder {
   bool foot_points() const override { return true; }
   double analysis_radius() const override { return radius_; }
   void Refine() override;
+  void KeepOnly(std::span<const std::uint32_t> kept) override;
 
   // Status of each sample's last projection (for statistics and tests).
   const std::vector<ProjectionStatus>& last_status() const { return status_; }
