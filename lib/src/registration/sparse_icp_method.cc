@@ -127,10 +127,8 @@ class SparseIcpStep final : public IcpStep {
   // every fine iteration. The README's departures give the accuracy and time measured.
   void Refine() override {
     first_fates_.resize(samples_.size());
-    for (std::size_t i = 0; i < samples_.size(); ++i) {
-      first_fates_[i] = filters_.fine.Judge(moved_[i], moved_normals_[i], surface_.curvature[i],
-                                            surface_.valid[i] != 0, correspondences_[i]);
-    }
+    filters_.fine.Apply(moved_, moved_normals_, surface_.curvature, surface_.valid,
+                        correspondences_, accepted_, first_fates_);
     DropRejected();
     finder_->Refine();
     solver_.set_tangential_weight(damping_);
