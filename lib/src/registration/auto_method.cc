@@ -3,7 +3,9 @@
 //      refines on the full-resolution target (skipped when a plane-to-plane finish follows and
 //      the voxel alignment verifies). A result that verifies and covers enough of the source
 //      with the target (of what the target's sensor could see, when known) goes to the finish
-//      (stage 4) and is returned, unless the finish contradicts its verdict.
+//      (stage 4) and is returned, unless the finish contradicts its verdict, or its weakest
+//      direction is fixed by so few samples that the rival search would run (the global stage
+//      then runs too, and the start competes with its candidates).
 //   2. Otherwise global candidates come from FPFH matches between the voxel clouds at the
 //      feature scale (registration/global_candidates.h); each is aligned on the voxel clouds and
 //      verified, and the start competes with them.
@@ -87,7 +89,12 @@ class AutoRegistration {
                                   start.iterations, *std::move(coarse_score), Seconds(phase)});
     report_.timings.start = Seconds(phase);
     best_score_ = report_.candidates[0].score;
-    if (Acceptable(best_score_)) {
+    // A verified start whose weakest direction few samples fix (SearchesForRival) may be an alias
+    // farther along it than the rival search looks: the global stage runs, and the start competes
+    // with its candidates (two street scans 10 m apart, from the identity: the start's
+    // refinement, 10 m along the street, verified over 85 % of what the target's sensor could
+    // see, with 9 % fewer inliers than the truth).
+    if (Acceptable(best_score_) && !SearchesForRival(best_score_)) {
       absl::StatusOr<RegistrationResult> polished = ApplyFinish(start);
       if (!polished.ok()) return polished.status();
       if (polished->termination == Termination::kCancelled) return Cancelled(start);

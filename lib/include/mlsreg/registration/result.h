@@ -134,8 +134,9 @@ struct AutoReport {
   // transform is the best found but must not be trusted: no candidate fits.
   bool verified = false;
   VerificationScore verification;  // of the result
-  bool early_exit = false;         // the start verified well enough: no global stage ran
-  int feature_matches = 0;         // matches the global stage drew from
+  // The start verified well enough, its weakest direction well fixed: no global stage ran.
+  bool early_exit = false;
+  int feature_matches = 0;  // matches the global stage drew from
   AutoStageTimings timings;
   FinishReport finish;
   // The candidate (origin kRival) at another pose that explains as many of the source's samples
