@@ -69,10 +69,11 @@ std::string FormatVerification(const VerificationScore& v) {
       v.rmse_d, v.WorstDirectionText(), v.worst_direction_error, 100.0 * v.worst_direction_fraction,
       v.worst_direction_samples, v.pull_rotation_deg, v.pull_translation, 100.0 * v.pull_fraction,
       v.settle_displacement, v.coherent_residual,
-      v.hidden > 0 ? absl::StrFormat("; of %d samples, %d lie where the target's sensor could "
-                                     "not see",
-                                     v.samples, v.hidden)
-                   : std::string());
+      v.hidden > 0 || v.seen_through > 0
+          ? absl::StrFormat("; of %d samples, %d lie where the target's sensor could not see, %d "
+                            "where it saw through them",
+                            v.samples, v.hidden, v.seen_through)
+          : std::string());
   if (v.verified()) return "verification: verified: " + evidence;
   return absl::StrFormat("verification: NOT VERIFIED (%s; do not trust the transform): %s",
                          VerdictName(v.verdict), evidence);
@@ -229,6 +230,7 @@ nlohmann::json VerificationJson(const VerificationScore& v) {
           {"samples", v.samples},
           {"covered", v.covered},
           {"hidden", v.hidden},
+          {"seen_through", v.seen_through},
           {"inliers", v.inliers},
           {"inlier_fraction", v.inlier_fraction},
           {"explained_fraction", v.explained_fraction},

@@ -24,6 +24,7 @@ void ToProto(const VerificationScore& s, v1::VerificationScore* out) {
       static_cast<v1::Verdict>(EnumToWire(VerdictNames(), static_cast<int>(s.verdict))));
   out->set_covered(s.covered);
   out->set_hidden(s.hidden);
+  out->set_seen_through(s.seen_through);
   out->set_explained_fraction(s.explained_fraction);
   out->set_inlier_distance(s.inlier_distance);
   for (int k = 0; k < 6; ++k) out->add_worst_direction(s.worst_direction[k]);
@@ -54,6 +55,7 @@ VerificationScore FromProto(const v1::VerificationScore& p) {
                   .value_or(Verdict::kTooLittleOverlap);
   s.covered = p.covered();
   s.hidden = p.hidden();
+  s.seen_through = p.seen_through();
   s.explained_fraction = p.explained_fraction();
   s.inlier_distance = p.inlier_distance();
   for (int k = 0; k < 6 && k < p.worst_direction_size(); ++k) {

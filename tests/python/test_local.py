@@ -353,30 +353,35 @@ def test_an_exception_in_the_callback_stops_and_propagates(bun000, bunny_target,
 def test_python_threads_register_in_parallel(bun000, bunny_target, near_start):
     """With the GIL released, two registrations run at the same time: the iterations of each
     (as their callbacks stamp them) interleave in time, and the results are those of one
-    registration alone."""
+    registration alone. A loaded machine may still run one before the other starts (the
+    scheduler's choice), so the pair gets three tries to interleave; the results must match
+    every time."""
     alone = mlsreg.register(bun000, bunny_target, method="mls-sicp", init=near_start)
-    stamps = {0: [], 1: []}
-    results = {}
-    barrier = threading.Barrier(2)
 
-    def run(k):
-        barrier.wait()
-        results[k] = mlsreg.register(
-            bun000, bunny_target, method="mls-sicp", init=near_start,
-            callback=lambda r: stamps[k].append(time.monotonic()))
+    def run_pair():
+        stamps = {0: [], 1: []}
+        results = {}
+        barrier = threading.Barrier(2)
 
-    threads = [threading.Thread(target=run, args=(k,)) for k in (0, 1)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
-    for k in (0, 1):
-        np.testing.assert_array_equal(results[k].transform, alone.transform)
-        assert len(stamps[k]) == alone.iterations >= 4
-    # Each thread's run spans the other's: neither ran start to end while the other waited.
-    first = min(stamps, key=lambda k: stamps[k][0])
-    other = 1 - first
-    assert stamps[other][0] < stamps[first][-1], "the registrations ran one after the other"
+        def run(k):
+            barrier.wait()
+            results[k] = mlsreg.register(
+                bun000, bunny_target, method="mls-sicp", init=near_start,
+                callback=lambda r: stamps[k].append(time.monotonic()))
+
+        threads = [threading.Thread(target=run, args=(k,)) for k in (0, 1)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        for k in (0, 1):
+            np.testing.assert_array_equal(results[k].transform, alone.transform)
+            assert len(stamps[k]) == alone.iterations >= 4
+        # Each thread's run spans the other's: neither ran start to end while the other waited.
+        first = min(stamps, key=lambda k: stamps[k][0])
+        return stamps[1 - first][0] < stamps[first][-1]
+
+    assert any(run_pair() for _ in range(3)), "the registrations ran one after the other, 3 times"
 
 
 # ---- evaluation

@@ -97,6 +97,23 @@ std::optional<float> SensorView::NearestIn(std::uint32_t cell) const {
   return it->second;
 }
 
+std::optional<float> SensorView::NearestAround(std::uint32_t cell) const {
+  const int n = cells_per_side_;
+  const int face_base = static_cast<int>(cell) / (n * n) * n * n;
+  const int i = (static_cast<int>(cell) - face_base) / n;
+  const int j = (static_cast<int>(cell) - face_base) % n;
+  std::optional<float> nearest;
+  for (int di = -1; di <= 1; ++di) {
+    for (int dj = -1; dj <= 1; ++dj) {
+      if (i + di < 0 || i + di >= n || j + dj < 0 || j + dj >= n) continue;
+      const std::optional<float> r =
+          NearestIn(static_cast<std::uint32_t>(face_base + (i + di) * n + (j + dj)));
+      if (r && (!nearest || *r < *nearest)) nearest = r;
+    }
+  }
+  return nearest;
+}
+
 bool SensorView::Hides(const Vec3& x, double tolerance) const {
   const Vec3 v = x - sensor_;
   const std::optional<std::uint32_t> cell = CellOf(v);
@@ -104,21 +121,18 @@ bool SensorView::Hides(const Vec3& x, double tolerance) const {
   const double range = v.norm();
   std::optional<float> nearest = NearestIn(*cell);
   if (!nearest) {  // between two beams, or where the sensor saw nothing
-    const int n = cells_per_side_;
-    const int face_base = static_cast<int>(*cell) / (n * n) * n * n;
-    const int i = (static_cast<int>(*cell) - face_base) / n;
-    const int j = (static_cast<int>(*cell) - face_base) % n;
-    for (int di = -1; di <= 1; ++di) {
-      for (int dj = -1; dj <= 1; ++dj) {
-        if (i + di < 0 || i + di >= n || j + dj < 0 || j + dj >= n) continue;
-        const std::optional<float> r =
-            NearestIn(static_cast<std::uint32_t>(face_base + (i + di) * n + (j + dj)));
-        if (r && (!nearest || *r < *nearest)) nearest = r;
-      }
-    }
+    nearest = NearestAround(*cell);
     if (!nearest) return true;
   }
   return range > static_cast<double>(*nearest) + tolerance;
+}
+
+bool SensorView::SeesThrough(const Vec3& x, double tolerance) const {
+  const Vec3 v = x - sensor_;
+  const std::optional<std::uint32_t> cell = CellOf(v);
+  if (!cell || !NearestIn(*cell)) return false;  // no return from x's direction: no evidence
+  const std::optional<float> nearest = NearestAround(*cell);
+  return v.norm() + tolerance < static_cast<double>(*nearest);
 }
 
 }  // namespace mlsreg

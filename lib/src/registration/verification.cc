@@ -324,6 +324,7 @@ Verdict Judge(const VerificationScore& s, DirectionCheck direction, const Verifi
       s.explained_fraction < o.min_explained_fraction) {
     return Verdict::kLowAgreement;
   }
+  if (s.seen_through_fraction() > o.max_seen_through_fraction) return Verdict::kSeenThrough;
   if (rms_per_band > o.max_rms_per_band) return Verdict::kDiffuseResiduals;
   if (s.coherent_residual > o.max_coherent_sigmas * s.inlier_distance / o.band_per_noise) {
     return Verdict::kCoherentResiduals;
@@ -351,6 +352,7 @@ const EnumNames& VerdictNames() {
       {static_cast<int>(Verdict::kPulled), "pulled", "PULLED"},
       {static_cast<int>(Verdict::kCoherentResiduals), "coherent_residuals", "COHERENT_RESIDUALS"},
       {static_cast<int>(Verdict::kAmbiguous), "ambiguous", "AMBIGUOUS"},
+      {static_cast<int>(Verdict::kSeenThrough), "seen_through", "SEEN_THROUGH"},
   };
   static constexpr EnumNames kNames{"Verdict", "VERDICT_", kValues};
   return kNames;
@@ -411,10 +413,12 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   HitSamples(target, points, pose, coverage, caches, hits, threads);
   const SensorView* view = target.sensor_view();
   for (std::size_t i = 0; i < points.size(); ++i) {
-    if (!hits[i].covered) {
-      if (view && view->Hides(hits[i].x, coverage)) ++score.hidden;
+    if (!hits[i].covered && view && view->Hides(hits[i].x, coverage)) {
+      ++score.hidden;
       continue;
     }
+    if (view && view->SeesThrough(hits[i].x, coverage)) ++score.seen_through;
+    if (!hits[i].covered) continue;
     const Vec3& x = hits[i].x;
     state[i] = 1;
     ++score.covered;

@@ -6,7 +6,9 @@
 // "not covered" makes a right street pose look like a partial one. SensorView keeps, for every
 // direction the sensor returned something in, the nearest range it returned there; a point is
 // hidden when it lies behind that return, or in a direction where the sensor returned nothing
-// and neither did its neighbours (the sky above the top beam, outside a camera's image).
+// and neither did its neighbours (the sky above the top beam, outside a camera's image). A point
+// is seen through when it lies well in front of every return around its direction: the beams
+// passed where it is, so nothing stood there when the scan was taken.
 //
 // The sensor is found from the sampling itself (FindSensor): a range scanner's spacing grows in
 // proportion to the distance from it. An object scan measured in a frame of its own shows no
@@ -52,6 +54,13 @@ class SensorView {
   // gap between two beams), or no return came from its direction or the neighbouring ones.
   bool Hides(const Vec3& x, double tolerance) const;
 
+  // Whether the sensor saw through `x`: a return came from its direction, and every return in
+  // its cell and the neighbouring ones lies more than `tolerance` beyond it (the beams passed
+  // where `x` is and went on). The nearest return of the neighbourhood decides, so a surface met
+  // at a grazing angle, whose range changes fast across a cell, is not seen through. A source
+  // sample that a pose puts there contradicts the pose, unless it moved between the scans.
+  bool SeesThrough(const Vec3& x, double tolerance) const;
+
   const Vec3& sensor() const { return sensor_; }
   std::size_t MemoryBytes() const { return cells_.capacity() * sizeof(cells_[0]); }
 
@@ -62,6 +71,8 @@ class SensorView {
   std::optional<std::uint32_t> CellOf(const Vec3& v) const;
   // The nearest range returned in `cell`, if any.
   std::optional<float> NearestIn(std::uint32_t cell) const;
+  // The nearest range returned in `cell` and the (up to) eight cells around it on its face.
+  std::optional<float> NearestAround(std::uint32_t cell) const;
 
   Vec3 sensor_ = Vec3::Zero();
   int cells_per_side_ = 1;

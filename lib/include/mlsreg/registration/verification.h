@@ -91,6 +91,12 @@ struct VerificationOptions {
   // is about 1 % of a sigma; at 0.01 every settling ran all six steps. A rival probe's settling
   // is subtracted from its distance to the result (rival_search.h) and runs to 0.01.
   double settle_tolerance_sigmas = 0.05;
+  // Where the target's sensor is known (SensorView), at most this share of the samples it could
+  // judge may lie where it saw through them: more than the coverage distance (one working voxel
+  // plus the band) in front of every return around their direction. At a right pose only what
+  // moved between the scans lies there (tuning streets and KITTI: 0-0.7 %); a street pose slid
+  // 1 m puts 2-8 % of the samples there, 3 m 3-18 % (cars, poles and cross walls in the street).
+  double max_seen_through_fraction = 0.03;
 };
 
 enum class Verdict {
@@ -108,6 +114,9 @@ enum class Verdict {
   // The pose passes every test above, but another pose along its weakest direction explains as
   // many samples (method auto's rival search: a corridor whose doors and pillars repeat).
   kAmbiguous,
+  // The target's sensor saw through too many samples: its beams passed where the pose puts them
+  // (a street pose slid along the road lays parked cars and poles on the open road).
+  kSeenThrough,
 };
 std::string_view VerdictName(Verdict verdict);  // "verified", "too_little_overlap", ...
 const EnumNames& VerdictNames();                // wire enum "Verdict"
@@ -118,6 +127,9 @@ struct VerificationScore {
   // Samples not covered that the target's sensor could not have seen (behind what it saw, or
   // where it saw nothing: SensorView); 0 when the target shows no sensor.
   int hidden = 0;
+  // Samples the target's sensor saw through (SensorView::SeesThrough, the coverage distance in
+  // front of every return around them); 0 when the target shows no sensor.
+  int seen_through = 0;
   int inliers = 0;                  // covered samples on the surface
   double inlier_fraction = 0.0;     // inliers / covered: the share of the overlap explained
   double explained_fraction = 0.0;  // inliers / samples
@@ -168,6 +180,11 @@ struct VerificationScore {
   // that the pose lays over the target's data (covered_fraction when no sensor is known).
   double visible_covered_fraction() const {
     return samples > hidden ? double(covered) / (samples - hidden) : 0.0;
+  }
+  // seen_through / (samples - hidden): the share of what the target's sensor could judge that it
+  // saw through.
+  double seen_through_fraction() const {
+    return samples > hidden ? double(seen_through) / (samples - hidden) : 0.0;
   }
   // "translation along (0.99, 0.11, 0.02)" or "rotation about (...)".
   std::string WorstDirectionText() const;
