@@ -90,11 +90,13 @@ class AutoRegistration {
     report_.timings.start = Seconds(phase);
     best_score_ = report_.candidates[0].score;
     // A verified start whose weakest direction few samples fix (SearchesForRival) may be an alias
-    // farther along it than the rival search looks: the global stage runs, and the start competes
-    // with its candidates (two street scans 10 m apart, from the identity: the start's
-    // refinement, 10 m along the street, verified over 85 % of what the target's sensor could
-    // see, with 9 % fewer inliers than the truth).
-    if (Acceptable(best_score_) && !SearchesForRival(best_score_)) {
+    // farther along it than the rival search looks. Where the target's sensor is known, the
+    // verification's seen-through test judges such a slide: the source's cars and poles stand
+    // where the target's beams passed (two street scans 10 m apart, from the identity: the
+    // start's refinement 10 m along the street has 11 % of its samples seen through). Elsewhere
+    // the global stage runs, and the start competes with its candidates.
+    const bool sensor_judges_slides = target_.sensor_view() != nullptr;
+    if (Acceptable(best_score_) && (sensor_judges_slides || !SearchesForRival(best_score_))) {
       absl::StatusOr<RegistrationResult> polished = ApplyFinish(start);
       if (!polished.ok()) return polished.status();
       if (polished->termination == Termination::kCancelled) return Cancelled(start);
