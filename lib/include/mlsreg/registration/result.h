@@ -134,7 +134,8 @@ struct AutoReport {
   // transform is the best found but must not be trusted: no candidate fits.
   bool verified = false;
   VerificationScore verification;  // of the result
-  // The start verified well enough, its weakest direction well fixed: no global stage ran.
+  // The start verified well enough (its weakest direction well fixed, or the target's sensor known
+  // to judge a slide along it): no global stage ran.
   bool early_exit = false;
   int feature_matches = 0;  // matches the global stage drew from
   AutoStageTimings timings;
