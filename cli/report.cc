@@ -64,7 +64,7 @@ std::string FormatVerification(const VerificationScore& v) {
       "%.1f %% of the overlap (%d of %d covered samples) within %.4g (%.2f d) of the target's "
       "surface, RMSE %.3f d; weakest direction: %s, standard error %.3g, %.1f %% of its %d "
       "samples agree; pull: a step of %.3g deg and %.3g would remove %.1f %% of the residuals, "
-      "settling moves the samples %.3g; neighbours share %.3g of their residuals%s",
+      "settling moves the samples %.3g; neighbours share %.3g of their residuals%s%s",
       100.0 * v.inlier_fraction, v.inliers, v.covered, v.inlier_distance, v.inlier_distance_d,
       v.rmse_d, v.WorstDirectionText(), v.worst_direction_error, 100.0 * v.worst_direction_fraction,
       v.worst_direction_samples, v.pull_rotation_deg, v.pull_translation, 100.0 * v.pull_fraction,
@@ -73,6 +73,11 @@ std::string FormatVerification(const VerificationScore& v) {
           ? absl::StrFormat("; of %d samples, %d lie where the target's sensor could not see, %d "
                             "where it saw through them",
                             v.samples, v.hidden, v.seen_through)
+          : std::string(),
+      v.sides_judged > 0
+          ? absl::StrFormat("; of %d inliers whose surface both sensors saw clearly, %d the "
+                            "source's sensor saw from behind",
+                            v.sides_judged, v.seen_from_behind)
           : std::string());
   if (v.verified()) return "verification: verified: " + evidence;
   return absl::StrFormat("verification: NOT VERIFIED (%s; do not trust the transform): %s",
@@ -231,6 +236,8 @@ nlohmann::json VerificationJson(const VerificationScore& v) {
           {"covered", v.covered},
           {"hidden", v.hidden},
           {"seen_through", v.seen_through},
+          {"sides_judged", v.sides_judged},
+          {"seen_from_behind", v.seen_from_behind},
           {"inliers", v.inliers},
           {"inlier_fraction", v.inlier_fraction},
           {"explained_fraction", v.explained_fraction},

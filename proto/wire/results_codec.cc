@@ -25,6 +25,8 @@ void ToProto(const VerificationScore& s, v1::VerificationScore* out) {
   out->set_covered(s.covered);
   out->set_hidden(s.hidden);
   out->set_seen_through(s.seen_through);
+  out->set_sides_judged(s.sides_judged);
+  out->set_seen_from_behind(s.seen_from_behind);
   out->set_explained_fraction(s.explained_fraction);
   out->set_inlier_distance(s.inlier_distance);
   for (int k = 0; k < 6; ++k) out->add_worst_direction(s.worst_direction[k]);
@@ -56,6 +58,8 @@ VerificationScore FromProto(const v1::VerificationScore& p) {
   s.covered = p.covered();
   s.hidden = p.hidden();
   s.seen_through = p.seen_through();
+  s.sides_judged = p.sides_judged();
+  s.seen_from_behind = p.seen_from_behind();
   s.explained_fraction = p.explained_fraction();
   s.inlier_distance = p.inlier_distance();
   for (int k = 0; k < 6 && k < p.worst_direction_size(); ++k) {

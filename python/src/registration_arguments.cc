@@ -55,7 +55,8 @@ py::dict ScoreToPython(const VerificationScore& s) {
   return py::dict(
       py::arg("verified") = s.verified(), py::arg("verdict") = std::string(VerdictName(s.verdict)),
       py::arg("samples") = s.samples, py::arg("covered") = s.covered, py::arg("hidden") = s.hidden,
-      py::arg("seen_through") = s.seen_through, py::arg("inliers") = s.inliers,
+      py::arg("seen_through") = s.seen_through, py::arg("sides_judged") = s.sides_judged,
+      py::arg("seen_from_behind") = s.seen_from_behind, py::arg("inliers") = s.inliers,
       py::arg("inlier_fraction") = s.inlier_fraction,
       py::arg("explained_fraction") = s.explained_fraction, py::arg("rmse_d") = s.rmse_d,
       py::arg("inlier_distance_d") = s.inlier_distance_d,

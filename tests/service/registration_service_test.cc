@@ -54,8 +54,8 @@ TEST(ResultCodecTest, UserLengthsCrossTheWire) {
   EXPECT_EQ(back.scales.mls_radius, 0.004);
 }
 
-// The target's sensor and the samples hidden from it cross the wire; a target without a sensor
-// has none after the trip.
+// The target's sensor, the samples hidden from it, and the sides the two sensors saw the inliers
+// from cross the wire; a target without a sensor has none after the trip.
 TEST(ResultCodecTest, TheSensorAndTheHiddenSamplesCrossTheWire) {
   RegistrationResult result;
   result.verification = VerificationScore{};
@@ -69,6 +69,9 @@ TEST(ResultCodecTest, TheSensorAndTheHiddenSamplesCrossTheWire) {
   result.verification->samples = 5280;
   result.verification->covered = 3012;
   result.verification->hidden = 2136;
+  result.verification->sides_judged = 419;
+  result.verification->seen_from_behind = 353;
+  result.verification->verdict = Verdict::kSeenFromBehind;
   v1::Result proto;
   wire::ToProto(result, &proto);
   const RegistrationResult back = wire::FromProto(proto);
@@ -76,6 +79,9 @@ TEST(ResultCodecTest, TheSensorAndTheHiddenSamplesCrossTheWire) {
   EXPECT_EQ(*back.scales.sensor, Vec3(1.5, -2.0, 0.25));
   ASSERT_TRUE(back.verification.has_value());
   EXPECT_EQ(back.verification->hidden, 2136);
+  EXPECT_EQ(back.verification->sides_judged, 419);
+  EXPECT_EQ(back.verification->seen_from_behind, 353);
+  EXPECT_EQ(back.verification->verdict, Verdict::kSeenFromBehind);
   EXPECT_DOUBLE_EQ(back.verification->visible_covered_fraction(), 3012.0 / (5280 - 2136));
 }
 

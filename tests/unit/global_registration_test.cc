@@ -465,7 +465,8 @@ TEST(AutoMethodTest, TheFinishPolishesVerifiedAndPulledResultsOnly) {
   for (const Verdict verdict :
        {Verdict::kVerified, Verdict::kTooLittleOverlap, Verdict::kLowAgreement,
         Verdict::kDiffuseResiduals, Verdict::kDirectionDisagrees, Verdict::kUnconstrained,
-        Verdict::kPulled, Verdict::kCoherentResiduals, Verdict::kAmbiguous}) {
+        Verdict::kPulled, Verdict::kCoherentResiduals, Verdict::kAmbiguous, Verdict::kSeenThrough,
+        Verdict::kSeenFromBehind}) {
     SCOPED_TRACE(std::string(VerdictName(verdict)));
     EXPECT_EQ(FinishPolishes(verdict),
               verdict == Verdict::kVerified || verdict == Verdict::kPulled);

@@ -217,5 +217,48 @@ TEST(SensorViewTest,
   EXPECT_NE(report.chosen, 0);
 }
 
+// A street scan laid upside down, its road on the target's road (turned 180 degrees about the
+// vertical plane along the street and lowered by twice the sensor's height): its facades go
+// below the road, hidden from the target's sensor, and nothing lies where that sensor saw
+// through. But the pose puts the source's sensor under the road: it would have seen the road
+// from behind.
+TEST(SensorViewTest, AStreetScanLaidUpsideDownOnTheRoadIsSeenFromBehind) {
+  const Vec3 source_sensor(14.0, 0.0, 0.0);
+  const PointCloud source = SpinningScan(source_sensor, 40.0, 0.01, 2);
+  auto target = Target::Build(SpinningScan(Vec3::Zero(), 40.0, 0.01, 3)).value();
+  Matrix4 truth = Matrix4::Identity();
+  truth.block<3, 1>(0, 3) = source_sensor;
+  const VerificationScore right = VerifyPose(*target, source, truth, /*threads=*/1);
+  EXPECT_TRUE(right.verified()) << VerdictName(right.verdict);
+  EXPECT_GT(right.sides_judged, 500);
+  EXPECT_LE(right.seen_from_behind_fraction(), 0.01);
+  Matrix4 upside_down = Matrix4::Identity();
+  upside_down.diagonal() << -1.0, 1.0, -1.0, 1.0;  // 180 degrees about y
+  upside_down(2, 3) = -3.4;
+  const VerificationScore wrong = VerifyPose(*target, source, truth * upside_down, /*threads=*/1);
+  EXPECT_EQ(wrong.verdict, Verdict::kSeenFromBehind) << VerdictName(wrong.verdict);
+  EXPECT_EQ(wrong.seen_through, 0);
+}
+
+// Registered from the identity, the global stage of that street pair (14 m apart) offers such a
+// pose (13 m off, upside down), which passes every other test. It is refused, and a right
+// candidate is returned, verified.
+TEST(SensorViewTest, AutoRefusesTheUpsideDownStreetCandidateAndReturnsTheTruth) {
+  const Vec3 source_sensor(14.0, 0.0, 0.0);
+  const PointCloud source = SpinningScan(source_sensor, 40.0, 0.01, 2);
+  auto target = Target::Build(SpinningScan(Vec3::Zero(), 40.0, 0.01, 3)).value();
+  absl::StatusOr<RegistrationResult> result = Register(*target, source, Matrix4::Identity(), {});
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_LT((result->transform.block<3, 1>(0, 3) - source_sensor).norm(), 0.05);
+  ASSERT_TRUE(result->verification.has_value());
+  EXPECT_TRUE(result->verification->verified()) << VerdictName(result->verification->verdict);
+  const AutoReport& report = result->auto_report.value();
+  const bool refused_upside_down =
+      std::any_of(report.candidates.begin(), report.candidates.end(), [](const AutoCandidate& c) {
+        return c.score.verdict == Verdict::kSeenFromBehind && c.refined(2, 2) < 0.0;
+      });
+  EXPECT_TRUE(refused_upside_down);
+}
+
 }  // namespace
 }  // namespace mlsreg

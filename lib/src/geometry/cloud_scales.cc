@@ -12,6 +12,8 @@ namespace {
 
 constexpr std::size_t kSpacingSamples = 20'000;
 constexpr std::uint64_t kSpacingSeed = 0x5ca1e;
+// FindScanSensor's sample: enough for the slope of log spacing over log range (FindSensor).
+constexpr std::size_t kSensorSamples = 5'000;
 
 }  // namespace
 
@@ -50,6 +52,15 @@ CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree,
                                   kMinWorkingVoxelPerSpacing * scales.median_spacing);
   if (!(scales.working_voxel > 0.0)) scales.working_voxel = d;
   return scales;
+}
+
+std::optional<SensorFinding> FindScanSensor(const std::vector<Vec3>& points, const KdTree& tree,
+                                            const std::optional<Vec3>& viewpoint, int threads) {
+  if (points.empty()) return std::nullopt;
+  const std::vector<std::uint32_t> sample =
+      RandomSubsample(points.size(), kSensorSamples, kSpacingSeed);
+  const std::vector<double> sampled = NearestDistinctDistances(points, tree, sample, threads);
+  return FindSensor(points, sample, sampled, viewpoint.value_or(Vec3::Zero()));
 }
 
 }  // namespace mlsreg

@@ -71,6 +71,7 @@ class AutoRegistration {
     Clock::time_point phase = Clock::now();
     source_voxels_ = BuildVoxelCloud(problem_.source->points, target_.voxel_cloud().voxel,
                                      problem_.source->viewpoint, problem_.threads);
+    source_voxels_.sensor = problem_.source_sensor;
     RegistrationResult start =
         AlignCoarse(problem_.initial, Stage::kCoarse, 0, 0, problem_.options->max_iterations);
     start_capture_ = last_capture_;

@@ -106,8 +106,9 @@ namespace {
 // the result (no verdict).
 void VerifyWithRivalSearch(const RegistrationProblem& problem, RegistrationResult& result) {
   const Target& target = *problem.target;
-  const VoxelCloud samples = BuildVoxelCloud(problem.source->points, target.voxel_cloud().voxel,
-                                             problem.source->viewpoint, problem.threads);
+  VoxelCloud samples = BuildVoxelCloud(problem.source->points, target.voxel_cloud().voxel,
+                                       problem.source->viewpoint, problem.threads);
+  samples.sensor = problem.source_sensor;
   VerificationCaches caches;
   const auto verify = [&](const Matrix4& pose, const VerificationOptions& options) {
     return VerifyAlignment(target, samples, pose, problem.noise_levels, options, problem.threads,
@@ -154,11 +155,12 @@ PoseVerdict VerifyPoseSearchingRivals(const Target& target, const PointCloud& so
   static const RegistrationOptions kDefaults;
   static const RegistrationCallbacks kNoCallbacks;
   const double d = target.sampling_distance();
-  const double source_noise_d = EstimateSourceNoiseD(target, source, threads);
+  const SourceMeasures measured = MeasureSource(target, source, threads);
   RegistrationProblem problem{&target,    &source,       Orthonormalize(transform),
                               &kDefaults, &kNoCallbacks, internal::Clock::now()};
   problem.threads = std::max(1, threads);
-  problem.noise_levels = {target.noise().sigma_d * d, source_noise_d * d};
+  problem.noise_levels = {target.noise().sigma_d * d, measured.noise_d * d};
+  problem.source_sensor = measured.sensor;
   RegistrationResult result;
   result.transform = problem.initial;
   VerifyWithRivalSearch(problem, result);
@@ -195,6 +197,7 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
   double noise_seconds = 0.0;
   std::optional<KdTree> source_tree;
   double source_noise_d = 0.0;
+  std::optional<Vec3> source_sensor;
   const bool reads_mls = (method.parameter_groups & kMlsParameters) != 0;
   const bool auto_radius = reads_mls && !options.mls.radius_d;
   if (auto_radius || options.verify || options.method == Method::kAuto) {
@@ -210,6 +213,7 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
       return cancelled;
     }
     source_noise_d = noise.sigma_d;
+    source_sensor = SourceSensor(target, source, *source_tree, execution.threads);
     noise_seconds = internal::Seconds(phase);
   }
   if (auto_radius) {
@@ -227,6 +231,7 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
   problem.noise_levels = {target.noise().sigma_d * d, source_noise_d * d};
   problem.noise = std::hypot(problem.noise_levels.target, problem.noise_levels.source);
   problem.threads = std::max(1, execution.threads);
+  problem.source_sensor = source_sensor;
   absl::StatusOr<RegistrationResult> result = method.run(problem);
   if (!result.ok()) return result;
   result->timings.preprocessing += noise_seconds;

@@ -9,6 +9,7 @@
 #include "absl/strings/str_format.h"
 #include "mlsreg/core/parallel_for.h"
 #include "mlsreg/core/quantile.h"
+#include "mlsreg/geometry/cloud_scales.h"
 #include "mlsreg/geometry/neighbor_cache.h"
 #include "mlsreg/geometry/noise_estimate.h"
 #include "mlsreg/geometry/weighted_covariance.h"
@@ -325,6 +326,9 @@ Verdict Judge(const VerificationScore& s, DirectionCheck direction, const Verifi
     return Verdict::kLowAgreement;
   }
   if (s.seen_through_fraction() > o.max_seen_through_fraction) return Verdict::kSeenThrough;
+  if (s.seen_from_behind_fraction() > o.max_seen_from_behind_fraction) {
+    return Verdict::kSeenFromBehind;
+  }
   if (rms_per_band > o.max_rms_per_band) return Verdict::kDiffuseResiduals;
   if (s.coherent_residual > o.max_coherent_sigmas * s.inlier_distance / o.band_per_noise) {
     return Verdict::kCoherentResiduals;
@@ -353,6 +357,7 @@ const EnumNames& VerdictNames() {
       {static_cast<int>(Verdict::kCoherentResiduals), "coherent_residuals", "COHERENT_RESIDUALS"},
       {static_cast<int>(Verdict::kAmbiguous), "ambiguous", "AMBIGUOUS"},
       {static_cast<int>(Verdict::kSeenThrough), "seen_through", "SEEN_THROUGH"},
+      {static_cast<int>(Verdict::kSeenFromBehind), "seen_from_behind", "SEEN_FROM_BEHIND"},
   };
   static constexpr EnumNames kNames{"Verdict", "VERDICT_", kValues};
   return kNames;
@@ -412,6 +417,11 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   Vec3 centre = Vec3::Zero();
   HitSamples(target, points, pose, coverage, caches, hits, threads);
   const SensorView* view = target.sensor_view();
+  // Both sensors, in the target's frame, when both are known.
+  const bool judges_sides = view != nullptr && samples.sensor.has_value();
+  const Vec3 target_sensor = judges_sides ? target.scales().sensor->position : Vec3::Zero();
+  const Vec3 source_sensor = judges_sides ? Vec3(pose * *samples.sensor) : Vec3::Zero();
+  const double min_side_sine = std::sin(options.min_side_view_angle_deg * M_PI / 180.0);
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (!hits[i].covered && view && view->Hides(hits[i].x, coverage)) {
       ++score.hidden;
@@ -433,6 +443,17 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
     sum_normalised += Squared(hit.distance / local_band);
     sum_band += local_band;
     if (hit.normal.squaredNorm() > 0.0) pulls.push_back({x, hit.normal, hit.across});
+    if (judges_sides && hit.normal.squaredNorm() > 0.0) {
+      const double target_side = hit.normal.dot(target_sensor - x);
+      const double source_side = hit.normal.dot(source_sensor - x);
+      if (std::abs(target_side) >
+              std::max(local_band, min_side_sine * (target_sensor - x).norm()) &&
+          std::abs(source_side) >
+              std::max(local_band, min_side_sine * (source_sensor - x).norm())) {
+        ++score.sides_judged;
+        score.seen_from_behind += (target_side > 0.0) != (source_side > 0.0);
+      }
+    }
   }
   if (score.covered > 0) {
     score.inlier_fraction = static_cast<double>(score.inliers) / score.covered;
@@ -568,25 +589,31 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   return score;
 }
 
-VerificationScore VerifyPose(const Target& target, const PointCloud& source,
-                             const Matrix4& transform, double source_noise_d, int threads) {
-  const double d = target.sampling_distance();
-  const VoxelCloud samples =
-      BuildVoxelCloud(source.points, target.voxel_cloud().voxel, source.viewpoint, threads);
-  return VerifyAlignment(target, samples, transform,
-                         {target.noise().sigma_d * d, source_noise_d * d}, {}, threads);
+std::optional<Vec3> SourceSensor(const Target& target, const PointCloud& source, const KdTree& tree,
+                                 int threads) {
+  if (target.sensor_view() == nullptr) return std::nullopt;
+  const std::optional<SensorFinding> sensor =
+      FindScanSensor(source.points, tree, source.viewpoint, threads);
+  if (!sensor) return std::nullopt;
+  return sensor->position;
 }
 
-double EstimateSourceNoiseD(const Target& target, const PointCloud& source, int threads) {
+SourceMeasures MeasureSource(const Target& target, const PointCloud& source, int threads) {
   const KdTree tree(source.points);
-  return EstimateNoise(source.points, tree, target.sampling_distance(), {}, {}, {}, threads)
-      .sigma_d;
+  return {
+      EstimateNoise(source.points, tree, target.sampling_distance(), {}, {}, {}, threads).sigma_d,
+      SourceSensor(target, source, tree, threads)};
 }
 
 VerificationScore VerifyPose(const Target& target, const PointCloud& source,
                              const Matrix4& transform, int threads) {
-  return VerifyPose(target, source, transform, EstimateSourceNoiseD(target, source, threads),
-                    threads);
+  const double d = target.sampling_distance();
+  const SourceMeasures measured = MeasureSource(target, source, threads);
+  VoxelCloud samples =
+      BuildVoxelCloud(source.points, target.voxel_cloud().voxel, source.viewpoint, threads);
+  samples.sensor = measured.sensor;
+  return VerifyAlignment(target, samples, transform,
+                         {target.noise().sigma_d * d, measured.noise_d * d}, {}, threads);
 }
 
 Matrix4 MovedAlongWorstDirection(const VerificationScore& score, const Matrix4& transform,

@@ -38,4 +38,11 @@ struct CloudScales {
 CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree,
                           const std::optional<Vec3>& viewpoint = std::nullopt, int threads = 1);
 
+// The sensor of a scan alone, found as MeasureScales finds it but from a seeded sample of at most
+// 5,000 points (their nearest distinct neighbours only): for a source, whose other scales the
+// registration does not need.
+std::optional<SensorFinding> FindScanSensor(const std::vector<Vec3>& points, const KdTree& tree,
+                                            const std::optional<Vec3>& viewpoint = std::nullopt,
+                                            int threads = 1);
+
 }  // namespace mlsreg

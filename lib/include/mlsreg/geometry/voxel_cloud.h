@@ -33,6 +33,9 @@ struct VoxelCloud {
   std::vector<std::uint32_t> counts;  // samples in each voxel
   bool oriented = false;
   std::unique_ptr<KdTree> tree;  // over `points`
+  // The sensor of the scan the voxels come from, when its sampling shows one (FindScanSensor;
+  // not set by BuildVoxelCloud): the verification asks from which side it saw each surface.
+  std::optional<Vec3> sensor;
 
   std::size_t size() const { return points.size(); }
   std::size_t MemoryBytes() const;

@@ -98,6 +98,16 @@ struct VerificationOptions {
   // 1 m puts 2.1-9.1 % of the samples there (47 of 49 pairs over 3 %), 3 m 4.3-19 % (cars,
   // poles and cross walls in the street; docs/verification.md, "Seen through").
   double max_seen_through_fraction = 0.03;
+  // Where both scans' sensors are known, at most this share of the inliers judged may have the
+  // source's sensor behind their surface (on the other side of it from the target's sensor: it
+  // would have seen the surface from behind). Judged are the inliers whose plane both sensors
+  // lie off by more than the band and by min_side_view_angle_deg as seen from the inlier: a
+  // normal fitted over one LiDAR ring far from the sensor tilts about the ring, and a grazing
+  // view would change side with it. At a right pose only thin surfaces seen from both sides lie
+  // there (KITTI at the truth: 0-0.5 %); a street scan laid upside down with its road on the
+  // target's road puts 84 % there (its facades hidden below the road, nothing seen through).
+  double max_seen_from_behind_fraction = 0.10;
+  double min_side_view_angle_deg = 15.0;
 };
 
 enum class Verdict {
@@ -118,6 +128,9 @@ enum class Verdict {
   // The target's sensor saw through too many samples: its beams passed where the pose puts them
   // (a street pose slid along the road lays parked cars and poles on the open road).
   kSeenThrough,
+  // The source's sensor would have seen too many of the inliers' surfaces from behind: the pose
+  // puts it on the other side of them from the target's sensor (a scan laid upside down).
+  kSeenFromBehind,
 };
 std::string_view VerdictName(Verdict verdict);  // "verified", "too_little_overlap", ...
 const EnumNames& VerdictNames();                // wire enum "Verdict"
@@ -131,6 +144,11 @@ struct VerificationScore {
   // Samples the target's sensor saw through (SensorView::SeesThrough, the coverage distance in
   // front of every return around them); 0 when the target shows no sensor.
   int seen_through = 0;
+  // Where both scans' sensors are known: the inliers whose surface both sensors lie clearly off
+  // (more than the band from its plane), and of those, the ones the pose puts the source's sensor
+  // behind (on the other side of the surface from the target's sensor).
+  int sides_judged = 0;
+  int seen_from_behind = 0;
   int inliers = 0;                  // covered samples on the surface
   double inlier_fraction = 0.0;     // inliers / covered: the share of the overlap explained
   double explained_fraction = 0.0;  // inliers / samples
@@ -187,6 +205,10 @@ struct VerificationScore {
   double seen_through_fraction() const {
     return samples > hidden ? double(seen_through) / (samples - hidden) : 0.0;
   }
+  // seen_from_behind / sides_judged.
+  double seen_from_behind_fraction() const {
+    return sides_judged > 0 ? double(seen_from_behind) / sides_judged : 0.0;
+  }
   // "translation along (0.99, 0.11, 0.02)" or "rotation about (...)".
   std::string WorstDirectionText() const;
 };
@@ -223,16 +245,23 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
                                   const VerificationOptions& options = {}, int threads = 1,
                                   VerificationCaches* caches = nullptr);
 
-// The source's noise sigma in units of the target's d, estimated as Register estimates it.
-double EstimateSourceNoiseD(const Target& target, const PointCloud& source, int threads = 1);
+// What Register measures of a source for the verdict: its noise sigma (units of the target's
+// d) and, where the target's sensor is known, the source's own (FindScanSensor), for the test of
+// the sides the two sensors saw each surface from.
+struct SourceMeasures {
+  double noise_d = 0.0;
+  std::optional<Vec3> sensor;
+};
+SourceMeasures MeasureSource(const Target& target, const PointCloud& source, int threads = 1);
+// The source's sensor alone, on its index `tree`: none when the target shows no sensor (the
+// test needs both) or the source's sampling shows none.
+std::optional<Vec3> SourceSensor(const Target& target, const PointCloud& source, const KdTree& tree,
+                                 int threads = 1);
 
-// Verifies `transform` (source to target) as Register verifies a result: the source's noise is
-// estimated and its voxel cloud at the target's working voxel scored.
+// Verifies `transform` (source to target) as Register verifies a result: the source measured
+// (MeasureSource) and its voxel cloud at the target's working voxel scored.
 VerificationScore VerifyPose(const Target& target, const PointCloud& source,
                              const Matrix4& transform, int threads = 1);
-// The same with the source's noise already known (units of the target's d).
-VerificationScore VerifyPose(const Target& target, const PointCloud& source,
-                             const Matrix4& transform, double source_noise_d, int threads);
 
 // `transform` followed by a motion along `score`'s worst direction that moves the covered samples
 // by about `distance` (a translation moves each by exactly that; a rotation about the samples'
