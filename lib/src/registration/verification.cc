@@ -326,7 +326,8 @@ Verdict Judge(const VerificationScore& s, DirectionCheck direction, const Verifi
     return Verdict::kLowAgreement;
   }
   if (s.seen_through_fraction() > o.max_seen_through_fraction) return Verdict::kSeenThrough;
-  if (s.seen_from_behind_fraction() > o.max_seen_from_behind_fraction) {
+  if (s.sides_judged >= o.min_sides_judged &&
+      s.seen_from_behind_fraction() > o.max_seen_from_behind_fraction) {
     return Verdict::kSeenFromBehind;
   }
   if (rms_per_band > o.max_rms_per_band) return Verdict::kDiffuseResiduals;
