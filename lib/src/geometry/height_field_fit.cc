@@ -37,27 +37,6 @@ double HeightField::Evaluate(double x, double y) const {
 HeightFieldFit::HeightFieldFit(int degree)
     : degree_(std::clamp(degree, 0, kMaxHeightFieldDegree)) {}
 
-void HeightFieldFit::Add(double x, double y, double f, double weight) {
-  double xp[7], yp[7];
-  xp[0] = yp[0] = 1.0;
-  for (int k = 1; k < 7; ++k) {
-    xp[k] = xp[k - 1] * x;
-    yp[k] = yp[k - 1] * y;
-  }
-  for (int a = 0; a <= 6; ++a) {
-    const double wx = weight * xp[a];
-    for (int b = 0; a + b <= 6; ++b) moments_[a][b] += wx * yp[b];
-  }
-  const double wf = weight * f;
-  for (int a = 0; a <= 3; ++a) {
-    const double wfx = wf * xp[a];
-    for (int b = 0; a + b <= 3; ++b) rhs_moments_[a][b] += wfx * yp[b];
-  }
-  ++count_;
-  sum_w_ += weight;
-  sum_w2_ += weight * weight;
-}
-
 bool HeightFieldFit::Finalize(HeightField& out) const {
   // Exponents (of x, of y) of the monomials, in HeightField order.
   static constexpr int kPowX[10] = {0, 1, 0, 2, 1, 0, 3, 2, 1, 0};
