@@ -728,14 +728,15 @@ TEST(AutoMethodTest, PillarsThatDoNotRepeatLeaveNoRival) {
 }
 
 // The finish follows the clouds' measured noise (registration/finish.h): plane-to-plane on clean
-// samples of a bumpy sheet, MLS when both clouds carry 2 d of noise. Each polishes the verified
-// pose over every source point, says which ran and why, and is more accurate than the
-// refinement it started from.
+// samples of a bumpy sheet, MLS when both clouds carry 0.6 or 2 d of noise. Each polishes the
+// verified pose over every source point, says which ran and why, and is more accurate than
+// auto without it. Below 1 d the verified voxel alignment goes to the finish directly; at 2 d
+// MLS-SICP refines it first.
 TEST(AutoMethodTest, TheFinishFollowsTheNoiseAndPolishesTheVerifiedPose) {
   const double d =
       Target::Build(SampleBumpySurface(20'000, -1.0, 1.0, 1)).value()->sampling_distance();
   const Matrix4 truth = RandomPerturbation(12.0, 0.1, Vec3::Zero(), 3);
-  for (const double noise_d : {0.0, 2.0}) {
+  for (const double noise_d : {0.0, 0.6, 2.0}) {
     SCOPED_TRACE(noise_d);
     std::shared_ptr<const Target> target =
         Target::Build(SampleBumpySurface(20'000, -1.0, 1.0, 1, noise_d * d)).value();
@@ -756,6 +757,12 @@ TEST(AutoMethodTest, TheFinishFollowsTheNoiseAndPolishesTheVerifiedPose) {
     const FinishReport& finish = polished->auto_report->finish;
     EXPECT_EQ(finish.kind, noise_d == 0.0 ? FinishKind::kPlaneToPlane : FinishKind::kMls);
     EXPECT_EQ(finish.kind, ChooseFinish(finish.noise_d));
+    // The verified voxel alignment goes straight to the finish below kRefineBeforeMlsFinishD;
+    // at 2 d MLS-SICP refines it on its samples first.
+    const bool refined_first =
+        std::find(stages.begin(), stages.end(), Stage::kStart) != stages.end();
+    EXPECT_EQ(RefinesBeforeFinish(finish.noise_d), noise_d == 2.0);
+    EXPECT_EQ(refined_first, noise_d == 2.0);
     EXPECT_EQ(finish.noise_d, std::max(polished->target_noise_d, polished->source_noise_d));
     EXPECT_EQ(finish.crossover_d, kMlsFitFloorD);
     EXPECT_EQ(finish.samples, 12'000);  // every source point

@@ -1,11 +1,11 @@
 // Method auto: registration from any start.
 //   1. The voxel clouds are aligned from the caller's start (coarse_alignment.h), then MLS-SICP
-//      refines on the full-resolution target (skipped when a plane-to-plane finish follows and
-//      the voxel alignment verifies). A result that verifies and covers enough of the source
-//      with the target (of what the target's sensor could see, when known) goes to the finish
-//      (stage 4) and is returned, unless the finish contradicts its verdict, or its weakest
-//      direction is fixed by so few samples that the rival search would run (the global stage
-//      then runs too, and the start competes with its candidates).
+//      refines on the full-resolution target (skipped when the voxel alignment verifies and the
+//      clouds' noise is under 1 d: registration/finish.h, RefinesBeforeFinish). A result that
+//      verifies and covers enough of the source with the target (of what the target's sensor could
+//      see, when known) goes to the finish (stage 4) and is returned, unless the finish contradicts
+//      its verdict, or its weakest direction is fixed by so few samples that the rival search would
+//      run (the global stage then runs too, and the start competes with its candidates).
 //   2. Otherwise global candidates come from FPFH matches between the voxel clouds at the
 //      feature scale (registration/global_candidates.h); each is aligned on the voxel clouds and
 //      verified, and the start competes with them.
@@ -313,13 +313,9 @@ class AutoRegistration {
              best.verdict != Verdict::kTooLittleOverlap);
   }
 
-  // With a plane-to-plane finish to come, a voxel alignment that verifies goes straight to it:
-  // the finish's Gauss-Newton steps over every source point converge from there to the same
-  // pose (tuning split, sigma 0: the same median error, 14 % less time). Not before an MLS
-  // finish: Sparse ICP's lp steps from the voxel pose end 5-40 % farther from the truth than
-  // after a refinement on the samples (sigma 2 d, 10 of 48 problems).
+  // A voxel alignment that verifies goes straight to the finish (kRefineBeforeMlsFinishD).
   bool FinishesFromVoxels() const {
-    return params_.finish && ChooseFinish(problem_.noise_d) == FinishKind::kPlaneToPlane;
+    return params_.finish && !RefinesBeforeFinish(problem_.noise_d);
   }
 
   // `aligned` (a voxel alignment) refined by MLS-SICP, and the refined pose's verification. A
