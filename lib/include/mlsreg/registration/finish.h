@@ -36,9 +36,10 @@ inline FinishKind ChooseFinish(double noise_d) {
 // source point converges from there to a pose as close to the truth. Plane-to-plane's
 // Gauss-Newton steps do at any noise (tuning split, sigma 0: the same median error, 14 % less
 // time); so do Sparse ICP's lp steps with MLS at sigma = 0.8 d (estimated 0.73-0.79 d; median
-// RMSE 0.0993 -> 0.0954 d, 48/48 verified, 25 % less time) and on KITTI and the tuning streets
-// (estimated 0.26-0.52 d; 130 registrations: the same successes and verdicts, mean translation
-// error 0.0285 -> 0.0284 m on KITTI, 12-18 % less time). At sigma = 2 d (estimated 1.47-1.67 d)
+// RMSE 0.0993 -> 0.0954 d, 48/48 verified; whole processes interleaved with the code before:
+// 0.96 of the time, 13-14 % fewer instructions) and on KITTI and the tuning streets (estimated
+// 0.26-0.52 d; 130 registrations: the same successes and verdicts, mean translation error
+// 0.0285 -> 0.0284 m on KITTI; 0.99 of the time). At sigma = 2 d (estimated 1.47-1.67 d)
 // they do not: from the voxel pose they end farther from the truth (median 0.260 -> 0.303 d),
 // so the refinement stays above the threshold, set between the two levels.
 inline constexpr double kRefineBeforeMlsFinishD = 1.0;

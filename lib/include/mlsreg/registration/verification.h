@@ -150,8 +150,8 @@ struct VerificationScore {
   // front of every return around them); 0 when the target shows no sensor.
   int seen_through = 0;
   // Where both scans' sensors are known: the inliers whose surface both sensors lie clearly off
-  // (more than the band from its plane), and of those, the ones the pose puts the source's sensor
-  // behind (on the other side of the surface from the target's sensor).
+  // (more than the band and min_side_view_angle_deg from its plane), and of those, the ones the
+  // pose puts the source's sensor behind (on the other side of the surface from the target's).
   int sides_judged = 0;
   int seen_from_behind = 0;
   int inliers = 0;                  // covered samples on the surface
