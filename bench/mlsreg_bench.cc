@@ -34,7 +34,7 @@ const BunnyPair& Pair() {
     BunnyPair p;
     const std::string dir = std::string(MLSREG_SOURCE_DIR) + "/data/bunny/";
     auto manifest = ReadManifest(dir + "pairs.csv");
-    const RegistrationProblem& problem = manifest->problems.at(0);
+    const ManifestProblem& problem = manifest->problems.at(0);
     p.source = *ReadPointCloud(problem.source_path);
     p.target = *Target::Build(*ReadPointCloud(problem.target_path));
     p.truth = *problem.ground_truth;
@@ -355,7 +355,7 @@ const LidarPair& Kitti() {
         std::string(MLSREG_SOURCE_DIR) + "/../shared/data/real/kitti00_f0000-0015/";
     auto manifest = ReadManifest(dir + "pairs.csv");
     if (!manifest.ok() || manifest->problems.empty()) return p;
-    const RegistrationProblem& problem = manifest->problems.front();
+    const ManifestProblem& problem = manifest->problems.front();
     auto source = ReadPointCloud(problem.source_path);
     auto target = ReadPointCloud(problem.target_path);
     if (!source.ok() || !target.ok() || !problem.ground_truth) return p;
@@ -474,7 +474,7 @@ const BunnyViews& Views() {
     const std::string dir = std::string(MLSREG_SOURCE_DIR) + "/data/bunny/";
     auto manifest = ReadManifest(dir + "pairs.csv");
     Matrix4 bun000_to_bun045 = Matrix4::Identity(), bun315_to_bun000 = Matrix4::Identity();
-    for (const RegistrationProblem& p : manifest->problems) {
+    for (const ManifestProblem& p : manifest->problems) {
       (p.id == "bun000_bun045" ? bun000_to_bun045 : bun315_to_bun000) = *p.ground_truth;
     }
     for (const char* name : {"bun315.ply", "bun000.ply", "bun045.ply"}) {

@@ -147,9 +147,9 @@ int RunBatch(const BatchArgs& args) {
   }
   const std::set<std::string> already =
       args.resume ? CompletedJobs(args.results) : std::set<std::string>{};
-  std::vector<const RegistrationProblem*> jobs;
+  std::vector<const ManifestProblem*> jobs;
   for (std::size_t i : indices) {
-    const RegistrationProblem& p = manifest->problems[i];
+    const ManifestProblem& p = manifest->problems[i];
     if (!already.count(p.id)) jobs.push_back(&p);
   }
   std::fprintf(stderr, "mlsreg batch: %zu jobs (%zu already done), concurrency %d\n", jobs.size(),
@@ -159,7 +159,7 @@ int RunBatch(const BatchArgs& args) {
   // costs a header (CreateTarget is idempotent and the declared digest lets it answer at once).
   std::map<std::string, std::string> target_ids;  // path -> id
   std::map<std::string, std::string> upload_errors;
-  for (const RegistrationProblem* p : jobs) {
+  for (const ManifestProblem* p : jobs) {
     if (target_ids.count(p->target_path)) continue;
     // Always "upload": the client then holds the cloud and can upload it again if the target's
     // replica loses it or dies and the target moves to another replica.
@@ -196,7 +196,7 @@ int RunBatch(const BatchArgs& args) {
   ProgressPrinter progress;
   auto worker = [&] {
     for (std::size_t i = next++; i < jobs.size(); i = next++) {
-      const RegistrationProblem& p = *jobs[i];
+      const ManifestProblem& p = *jobs[i];
       JobOutcome o;
       o.id = p.id;
       o.target_id = target_ids[p.target_path];

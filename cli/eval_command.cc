@@ -190,7 +190,7 @@ absl::StatusOr<std::vector<Method>> ParseMethods(const std::string& list) {
 }
 
 // One outcome as the cells of kFixedColumns (the extra columns are appended by the caller).
-std::vector<std::string> OutcomeCells(const std::string& path, const RegistrationProblem& p,
+std::vector<std::string> OutcomeCells(const std::string& path, const ManifestProblem& p,
                                       const ProblemOutcome& o, const std::string& label) {
   std::vector<std::string> f = {path, p.id, std::string(MethodName(o.method)), p.source_path,
                                 p.target_path};
@@ -265,7 +265,7 @@ absl::StatusOr<EvalTable> RunTable(const EvalArgs& args, const EvaluationOptions
     const std::string& path = args.manifests[m];
     const auto without_start =
         std::count_if(manifest.problems.begin(), manifest.problems.end(),
-                      [](const RegistrationProblem& p) { return !p.initial.has_value(); });
+                      [](const ManifestProblem& p) { return !p.initial.has_value(); });
     if (without_start > 0 && !Perturbs(args)) {
       std::fprintf(stderr,
                    "mlsreg eval: warning: %s: %ld of %zu problems have no init column and no "
@@ -281,7 +281,7 @@ absl::StatusOr<EvalTable> RunTable(const EvalArgs& args, const EvaluationOptions
     }
     auto outcomes = RunEvaluation(
         manifest, options, [&](const ProblemOutcome& o, std::size_t done, std::size_t total) {
-          const RegistrationProblem& p = manifest.problems[o.problem_index];
+          const ManifestProblem& p = manifest.problems[o.problem_index];
           progress.Update(
               done, total,
               o.status.ok()
@@ -291,7 +291,7 @@ absl::StatusOr<EvalTable> RunTable(const EvalArgs& args, const EvaluationOptions
         });
     if (!outcomes.ok()) return outcomes.status();
     for (const ProblemOutcome& o : *outcomes) {
-      const RegistrationProblem& p = manifest.problems[o.problem_index];
+      const ManifestProblem& p = manifest.problems[o.problem_index];
       std::vector<std::string> row = OutcomeCells(path, p, o, args.label);
       for (std::size_t c = std::size(kFixedColumns); c < table.header.size(); ++c) {
         std::string value;
@@ -365,7 +365,7 @@ absl::StatusOr<EvalTable> MergeTable(const EvalArgs& args, const std::vector<Met
             file, line_number, manifest_path, cell("method")));
       }
       // The first problem with this id whose slot is free (ids may repeat).
-      const std::vector<RegistrationProblem>& list = manifests[m].problems;
+      const std::vector<ManifestProblem>& list = manifests[m].problems;
       std::size_t slot = slots.size();
       bool duplicate = false;
       for (std::size_t i = 0; i < list.size(); ++i) {

@@ -81,7 +81,7 @@ TEST_F(LidarProtocolTest, GroundTruthBringsEachSourceScanOntoItsTargetsSurfaces)
   EXPECT_EQ(manifest->extra_columns,
             (std::vector<std::string>{"distance_m", "rotation_deg", "scene", "noise_sigma_m",
                                       "source_frame", "target_frame"}));
-  for (const RegistrationProblem& problem : manifest->problems) {
+  for (const ManifestProblem& problem : manifest->problems) {
     SCOPED_TRACE(problem.id);
     ASSERT_TRUE(problem.ground_truth.has_value());
     EXPECT_FALSE(problem.initial.has_value());

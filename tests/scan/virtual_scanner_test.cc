@@ -103,7 +103,7 @@ TEST(VirtualScannerTest, ProtocolGroundTruthMapsEachViewOntoTheMesh) {
   const auto manifest = ReadManifest(summary->manifests[0]);
   ASSERT_TRUE(manifest.ok()) << manifest.status();
   ASSERT_EQ(manifest->problems.size(), 6u);
-  for (const RegistrationProblem& problem : manifest->problems) {
+  for (const ManifestProblem& problem : manifest->problems) {
     ASSERT_TRUE(problem.ground_truth && problem.initial);
     EXPECT_TRUE(problem.initial->isIdentity());
     const auto source = ReadPointCloud(problem.source_path);

@@ -37,7 +37,7 @@ const Matrix4& Bun000ToBun045() {
   static const Matrix4 truth = [] {
     auto manifest = ReadManifest(kBunnyDir + "pairs.csv");
     if (manifest.ok()) {
-      for (const RegistrationProblem& p : manifest->problems) {
+      for (const ManifestProblem& p : manifest->problems) {
         if (p.id == "bun000_bun045" && p.ground_truth) return *p.ground_truth;
       }
     }

@@ -41,7 +41,7 @@ TEST(PerturbedStartTest, RotatesAboutThePlacedCentroidByTheAngleAndMovesByTheDis
 Manifest ManifestOfTargets(const std::vector<std::string>& targets) {
   Manifest manifest;
   for (std::size_t i = 0; i < targets.size(); ++i) {
-    RegistrationProblem p;
+    ManifestProblem p;
     p.id = "p" + std::to_string(i);
     p.source_path = "s" + std::to_string(i) + ".ply";
     p.target_path = targets[i];

@@ -19,14 +19,14 @@ TEST(PoseFilesTest, TheBunnyConfGivesTheGroundTruthOfItsPairs) {
   auto manifest = ReadManifest(kBunny + "pairs.csv");
   ASSERT_TRUE(manifest.ok()) << manifest.status();
   std::vector<std::string> scans;
-  for (const RegistrationProblem& p : manifest->problems) {
+  for (const ManifestProblem& p : manifest->problems) {
     scans.push_back(p.source_path);
     scans.push_back(p.target_path);
   }
   auto poses = ReadPoses(kBunny + "bun.conf", scans);
   ASSERT_TRUE(poses.ok()) << poses.status();
   for (std::size_t k = 0; k < manifest->problems.size(); ++k) {
-    const RegistrationProblem& p = manifest->problems[k];
+    const ManifestProblem& p = manifest->problems[k];
     const Matrix4 relative = (*poses)[2 * k + 1].inverse() * (*poses)[2 * k];
     EXPECT_LT((relative - *p.ground_truth).cwiseAbs().maxCoeff(), 1e-6) << p.id;
   }

@@ -73,7 +73,7 @@ Vec3 TransformedCentroid(const PointCloud& cloud, const Matrix4& m) {
   return m.topLeftCorner<3, 3>() * c + m.topRightCorner<3, 1>();
 }
 
-ProblemOutcome RunOne(const RegistrationProblem& problem, std::size_t index, Method method,
+ProblemOutcome RunOne(const ManifestProblem& problem, std::size_t index, Method method,
                       const EvaluationOptions& options, CloudCache& cache) {
   ProblemOutcome out;
   out.problem_index = index;

@@ -93,7 +93,7 @@ absl::StatusOr<Manifest> ParseManifest(std::string_view csv, const std::string& 
       const std::filesystem::path p(path);
       return p.is_absolute() ? path : (std::filesystem::path(base_dir) / p).string();
     };
-    RegistrationProblem problem;
+    ManifestProblem problem;
     problem.id = field("id");
     problem.source_path = resolve(field("source"));
     problem.target_path = resolve(field("target"));

@@ -12,7 +12,8 @@
 namespace mlsreg {
 
 // One row: `id,source,target[,gt][,init]` plus any extra columns, which are kept verbatim.
-struct RegistrationProblem {
+// (Not the registration's own RegistrationProblem, lib/src/registration/method_runners.h.)
+struct ManifestProblem {
   std::string id;
   std::string source_path;  // resolved against the manifest's folder
   std::string target_path;
@@ -23,7 +24,7 @@ struct RegistrationProblem {
 
 struct Manifest {
   std::vector<std::string> extra_columns;
-  std::vector<RegistrationProblem> problems;
+  std::vector<ManifestProblem> problems;
 };
 
 // Parses CSV text (RFC 4180 quoting; header required; columns id, source, target mandatory; gt
