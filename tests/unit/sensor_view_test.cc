@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <numbers>
 #include <random>
 #include <vector>
@@ -144,16 +145,30 @@ TEST(SensorViewTest, APointInTheOpenWhereTheSensorSawFartherIsSeenThrough) {
   EXPECT_FALSE(view->SeesThrough(Vec3(3.0, 0.0, 3.0), tolerance));
 }
 
+// Two scans of the street `apart` metres apart along it, each in its own sensor's frame (range
+// noise 1 cm, 40 m range): the target from the origin, the source from (apart, 0, 0), so the
+// truth is that translation.
+struct StreetPair {
+  Vec3 source_sensor;
+  PointCloud source;
+  std::shared_ptr<const Target> target;
+  Matrix4 truth = Matrix4::Identity();
+};
+StreetPair StreetPairApart(double apart) {
+  StreetPair pair;
+  pair.source_sensor = Vec3(apart, 0.0, 0.0);
+  pair.source = SpinningScan(pair.source_sensor, 40.0, 0.01, 2);
+  pair.target = Target::Build(SpinningScan(Vec3::Zero(), 40.0, 0.01, 3)).value();
+  pair.truth.block<3, 1>(0, 3) = pair.source_sensor;
+  return pair;
+}
+
 // Two scans 14 m apart along the street. Where the source sees past the target's range and
 // behind the target's parked cars, the right pose covers little of it; those samples are hidden
 // from the target's sensor, and from the right start auto ends without a global stage.
 TEST(SensorViewTest, AutoAcceptsAStreetPoseWhoseUncoveredSamplesTheTargetCouldNotSee) {
-  const Vec3 source_sensor(14.0, 0.0, 0.0);
-  const PointCloud source = SpinningScan(source_sensor, 40.0, 0.01, 2);  // in its sensor's frame
-  auto target = Target::Build(SpinningScan(Vec3::Zero(), 40.0, 0.01, 3)).value();
+  const auto [source_sensor, source, target, truth] = StreetPairApart(14.0);
   ASSERT_NE(target->sensor_view(), nullptr);
-  Matrix4 truth = Matrix4::Identity();
-  truth.block<3, 1>(0, 3) = source_sensor;
 
   absl::StatusOr<RegistrationResult> result = Register(*target, source, truth, {});
   ASSERT_TRUE(result.ok()) << result.status();
@@ -176,11 +191,7 @@ TEST(SensorViewTest, AutoAcceptsAStreetPoseWhoseUncoveredSamplesTheTargetCouldNo
 // agree, but the source's parked cars and poles now stand where the target's beams passed and
 // returned from the road and the walls beyond. The target's sensor saw through them.
 TEST(SensorViewTest, AStreetPoseSlidAlongTheRoadIsSeenThrough) {
-  const Vec3 source_sensor(14.0, 0.0, 0.0);
-  const PointCloud source = SpinningScan(source_sensor, 40.0, 0.01, 2);
-  auto target = Target::Build(SpinningScan(Vec3::Zero(), 40.0, 0.01, 3)).value();
-  Matrix4 truth = Matrix4::Identity();
-  truth.block<3, 1>(0, 3) = source_sensor;
+  const auto [source_sensor, source, target, truth] = StreetPairApart(14.0);
   const VerificationScore right = VerifyPose(*target, source, truth, /*threads=*/1);
   EXPECT_TRUE(right.verified()) << VerdictName(right.verdict);
   EXPECT_LE(right.seen_through_fraction(), 0.01);
@@ -198,9 +209,7 @@ TEST(SensorViewTest, AStreetPoseSlidAlongTheRoadIsSeenThrough) {
 // finds the truth, which is returned, verified.
 TEST(SensorViewTest,
      AStreetPoseSlidAlongTheStreetFromTheIdentityIsRefusedAndTheGlobalStageFindsTheTruth) {
-  const Vec3 source_sensor(10.0, 0.0, 0.0);
-  const PointCloud source = SpinningScan(source_sensor, 40.0, 0.01, 2);  // in its sensor's frame
-  auto target = Target::Build(SpinningScan(Vec3::Zero(), 40.0, 0.01, 3)).value();
+  const auto [source_sensor, source, target, truth] = StreetPairApart(10.0);
 
   absl::StatusOr<RegistrationResult> result = Register(*target, source, Matrix4::Identity(), {});
   ASSERT_TRUE(result.ok()) << result.status();
@@ -223,11 +232,7 @@ TEST(SensorViewTest,
 // through. But the pose puts the source's sensor under the road: it would have seen the road
 // from behind.
 TEST(SensorViewTest, AStreetScanLaidUpsideDownOnTheRoadIsSeenFromBehind) {
-  const Vec3 source_sensor(14.0, 0.0, 0.0);
-  const PointCloud source = SpinningScan(source_sensor, 40.0, 0.01, 2);
-  auto target = Target::Build(SpinningScan(Vec3::Zero(), 40.0, 0.01, 3)).value();
-  Matrix4 truth = Matrix4::Identity();
-  truth.block<3, 1>(0, 3) = source_sensor;
+  const auto [source_sensor, source, target, truth] = StreetPairApart(14.0);
   const VerificationScore right = VerifyPose(*target, source, truth, /*threads=*/1);
   EXPECT_TRUE(right.verified()) << VerdictName(right.verdict);
   EXPECT_GT(right.sides_judged, 500);
@@ -244,9 +249,7 @@ TEST(SensorViewTest, AStreetScanLaidUpsideDownOnTheRoadIsSeenFromBehind) {
 // pose (13 m off, upside down), which passes every other test. It is refused, and a right
 // candidate is returned, verified.
 TEST(SensorViewTest, AutoRefusesTheUpsideDownStreetCandidateAndReturnsTheTruth) {
-  const Vec3 source_sensor(14.0, 0.0, 0.0);
-  const PointCloud source = SpinningScan(source_sensor, 40.0, 0.01, 2);
-  auto target = Target::Build(SpinningScan(Vec3::Zero(), 40.0, 0.01, 3)).value();
+  const auto [source_sensor, source, target, truth] = StreetPairApart(14.0);
   absl::StatusOr<RegistrationResult> result = Register(*target, source, Matrix4::Identity(), {});
   ASSERT_TRUE(result.ok()) << result.status();
   EXPECT_LT((result->transform.block<3, 1>(0, 3) - source_sensor).norm(), 0.05);
