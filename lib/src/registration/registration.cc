@@ -213,7 +213,10 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
       return cancelled;
     }
     source_noise_d = noise.sigma_d;
-    source_sensor = SourceSensor(target, source, *source_tree, execution.threads);
+    // Only the verdict asks where the source's sensor was.
+    if (options.verify || options.method == Method::kAuto) {
+      source_sensor = SourceSensor(target, source, *source_tree, execution.threads);
+    }
     noise_seconds = internal::Seconds(phase);
   }
   if (auto_radius) {
