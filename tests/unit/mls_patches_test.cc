@@ -175,6 +175,23 @@ TEST(MlsPatchesTest, FarQueryIsSeededFromNearestSampleOrRejected) {
   EXPECT_EQ(rejected.status, ProjectionStatus::kTooFewNeighbors);
 }
 
+// A query refused for lying beyond the surface's reach (a source point outside the overlap)
+// leaves the patches as they were: none is fitted for it; a query on the surface fits some.
+TEST(MlsPatchesTest, ARefusedFarQueryFitsNoPatch) {
+  const PointCloud plane = SamplePlaneGrid(1.0, 0.05, 0.0, 1);
+  const KdTree tree(plane.points);
+  const absl::StatusOr<MlsPatches> lazy = MlsPatches::Build(
+      plane.points, tree, PatchOptionsWithRadius(0.2), std::nullopt, PatchFitting::kOnFirstUse, 1);
+  ASSERT_TRUE(lazy.ok()) << lazy.status();
+  // 0.3 above the plane: farther than r = 0.2 from every anchor.
+  EXPECT_EQ(lazy->Project(Vec3(0.1, 0.1, 0.3), false).status, ProjectionStatus::kTooFewNeighbors);
+  EXPECT_EQ(lazy->fitted(), 0u);
+  const MlsProjection near = lazy->Project(Vec3(0.1, 0.1, 0.05), false);
+  ASSERT_EQ(near.status, ProjectionStatus::kOk);
+  EXPECT_NEAR(near.point.z(), 0.0, 1e-9);
+  EXPECT_GT(lazy->fitted(), 0u);
+}
+
 TEST(MlsPatchesTest, SameForAnyThreadCount) {
   const PointCloud sphere = SampleSphere(8000, 1.0, -0.5, 31);
   const KdTree tree(sphere.points);

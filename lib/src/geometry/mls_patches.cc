@@ -123,8 +123,8 @@ std::size_t MlsPatches::fitted() const {
   return n;
 }
 
-MlsPatches::Blend MlsPatches::BlendAt(const Vec3& query, const Vec3& near,
-                                      AnchorCache* cache) const {
+MlsPatches::Blend MlsPatches::BlendAt(const Vec3& query, const Vec3& near, AnchorCache* cache,
+                                      double beyond) const {
   constexpr int k = kBlendedPatches;
   std::uint32_t index[k + 1];
   double distance_squared[k + 1];
@@ -133,6 +133,9 @@ MlsPatches::Blend MlsPatches::BlendAt(const Vec3& query, const Vec3& near,
   Blend blend;
   if (found == 0) return blend;
   blend.nearest_distance = std::sqrt(distance_squared[0]);
+  // Beyond the surface's reach (a source sample outside the overlap): the caller refuses the
+  // query, so fitting the far anchors' patches on first use would be work no answer reads.
+  if (blend.nearest_distance > beyond) return blend;
   // The weights fall to zero at the (k+1)-th anchor, so a patch enters and leaves the blend with
   // weight 0 as the query moves.
   const std::size_t used = std::min<std::size_t>(found, k);
@@ -175,7 +178,7 @@ MlsPatches::Blend MlsPatches::BlendAt(const Vec3& query, const Vec3& near,
 
 MlsProjection MlsPatches::Finish(const Vec3& query, const Vec3& near, bool seed_far_queries,
                                  int blends, AnchorCache* cache, AnchorCache* foot_cache) const {
-  Blend blend = BlendAt(query, near, cache);
+  Blend blend = BlendAt(query, near, cache, mls_.radius);
   if (!blend.ok || blend.nearest_distance > mls_.radius) {
     MlsProjection far;
     far.status = ProjectionStatus::kTooFewNeighbors;

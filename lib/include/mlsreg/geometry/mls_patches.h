@@ -28,6 +28,7 @@
 #include <array>
 #include <atomic>
 #include <cstddef>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -105,7 +106,9 @@ class MlsPatches {
   };
   // A patch's state: not yet fitted, being fitted by one thread, fitted, or its fit failed.
   enum State : std::uint8_t { kUnfitted, kFitting, kFitted, kFailed };
-  // One blend: the k patches nearest `near` evaluated at `query`.
+  // One blend: the k patches nearest `near` evaluated at `query`. A blend whose nearest anchor
+  // lies farther than `beyond` from `near` stops before it fits or reads a patch: not ok, with
+  // nearest_distance set (the caller refuses such a query whatever the patches would say).
   struct Blend {
     bool ok = false;
     double nearest_distance = 0.0;
@@ -119,7 +122,8 @@ class MlsPatches {
   bool Fit(std::size_t i, MlsProjector::Workspace& workspace, Patch& out) const;
   // Anchor i's patch into `out`, fitting it now if no thread has; false when its fit failed.
   bool PatchAt(std::size_t i, Patch& out) const;
-  Blend BlendAt(const Vec3& query, const Vec3& near, AnchorCache* cache = nullptr) const;
+  Blend BlendAt(const Vec3& query, const Vec3& near, AnchorCache* cache = nullptr,
+                double beyond = std::numeric_limits<double>::infinity()) const;
   MlsProjection Finish(const Vec3& query, const Vec3& near, bool seed_far_queries, int blends,
                        AnchorCache* cache, AnchorCache* foot_cache) const;
 
