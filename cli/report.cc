@@ -64,7 +64,7 @@ std::string FormatVerification(const VerificationScore& v) {
       "%.1f %% of the overlap (%d of %d covered samples) within %.4g (%.2f d) of the target's "
       "surface, RMSE %.3f d; weakest direction: %s, standard error %.3g, %.1f %% of its %d "
       "samples agree; pull: a step of %.3g deg and %.3g would remove %.1f %% of the residuals, "
-      "settling moves the samples %.3g; neighbours share %.3g of their residuals%s%s",
+      "settling moves the samples %.3g; neighbours share %.3g of their residuals%s%s%s",
       100.0 * v.inlier_fraction, v.inliers, v.covered, v.inlier_distance, v.inlier_distance_d,
       v.rmse_d, v.WorstDirectionText(), v.worst_direction_error, 100.0 * v.worst_direction_fraction,
       v.worst_direction_samples, v.pull_rotation_deg, v.pull_translation, 100.0 * v.pull_fraction,
@@ -78,7 +78,12 @@ std::string FormatVerification(const VerificationScore& v) {
           ? absl::StrFormat("; of %d inliers whose surface both sensors saw clearly, %d the "
                             "source's sensor saw from behind",
                             v.sides_judged, v.seen_from_behind)
-          : std::string());
+          : std::string(),
+      v.pose_covariance
+          ? absl::StrFormat("; pose uncertainty (1 sigma, least certain direction): %.3g deg, "
+                            "%.3g at the overlap's centre",
+                            v.pose_rotation_sigma_deg, v.pose_translation_sigma)
+          : std::string("; pose uncertainty: unbounded (a direction without evidence)"));
   if (v.verified()) return "verification: verified: " + evidence;
   return absl::StrFormat("verification: NOT VERIFIED (%s; do not trust the transform): %s",
                          VerdictName(v.verdict), evidence);
@@ -230,6 +235,13 @@ nlohmann::json IterationJson(const IterationReport& r) {
 nlohmann::json VerificationJson(const VerificationScore& v) {
   nlohmann::json direction = nlohmann::json::array();
   for (int k = 0; k < 6; ++k) direction.push_back(v.worst_direction[k]);
+  nlohmann::json covariance = nullptr;  // row-major 6 x 6, or null when unbounded
+  if (v.pose_covariance) {
+    covariance = nlohmann::json::array();
+    for (int row = 0; row < 6; ++row) {
+      for (int col = 0; col < 6; ++col) covariance.push_back((*v.pose_covariance)(row, col));
+    }
+  }
   return {{"verified", v.verified()},
           {"verdict", std::string(VerdictName(v.verdict))},
           {"samples", v.samples},
@@ -259,7 +271,10 @@ nlohmann::json VerificationJson(const VerificationScore& v) {
           {"worst_direction_strength", v.worst_direction_strength},
           {"worst_direction_error", v.worst_direction_error},
           {"normal_angle_median_deg", v.normal_angle_median_deg},
-          {"edge_samples", v.edge_samples}};
+          {"edge_samples", v.edge_samples},
+          {"pose_covariance", covariance},
+          {"pose_rotation_sigma_deg", v.pose_rotation_sigma_deg},
+          {"pose_translation_sigma", v.pose_translation_sigma}};
 }
 
 nlohmann::json ResultJson(std::string_view method, const RegistrationResult& result,

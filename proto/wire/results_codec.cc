@@ -44,6 +44,13 @@ void ToProto(const VerificationScore& s, v1::VerificationScore* out) {
   out->set_normal_angle_median_deg(s.normal_angle_median_deg);
   out->set_edge_samples(s.edge_samples);
   out->set_noise(s.noise);
+  if (s.pose_covariance) {
+    for (int row = 0; row < 6; ++row) {
+      for (int col = 0; col < 6; ++col) out->add_pose_covariance((*s.pose_covariance)(row, col));
+    }
+  }
+  out->set_pose_rotation_sigma_deg(s.pose_rotation_sigma_deg);
+  out->set_pose_translation_sigma(s.pose_translation_sigma);
 }
 
 VerificationScore FromProto(const v1::VerificationScore& p) {
@@ -78,6 +85,13 @@ VerificationScore FromProto(const v1::VerificationScore& p) {
   s.coherent_residual = p.coherent_residual();
   s.normal_angle_median_deg = p.normal_angle_median_deg();
   s.edge_samples = p.edge_samples();
+  if (p.pose_covariance_size() == 36) {
+    Eigen::Matrix<double, 6, 6> covariance;
+    for (int k = 0; k < 36; ++k) covariance(k / 6, k % 6) = p.pose_covariance(k);
+    s.pose_covariance = covariance;
+  }
+  s.pose_rotation_sigma_deg = p.pose_rotation_sigma_deg();
+  s.pose_translation_sigma = p.pose_translation_sigma();
   s.noise = p.noise();
   return s;
 }

@@ -73,7 +73,12 @@ py::dict ScoreToPython(const VerificationScore& s) {
       py::arg("settle_displacement") = s.settle_displacement,
       py::arg("coherent_residual") = s.coherent_residual, py::arg("noise") = s.noise,
       py::arg("normal_angle_median_deg") = s.normal_angle_median_deg,
-      py::arg("edge_samples") = s.edge_samples);
+      py::arg("edge_samples") = s.edge_samples,
+      py::arg("pose_covariance") = s.pose_covariance
+                                       ? py::cast(Eigen::Matrix<double, 6, 6>(*s.pose_covariance))
+                                       : py::object(py::none()),
+      py::arg("pose_rotation_sigma_deg") = s.pose_rotation_sigma_deg,
+      py::arg("pose_translation_sigma") = s.pose_translation_sigma);
 }
 
 py::dict CandidateToPython(const AutoCandidate& c) {

@@ -99,9 +99,15 @@ for j in (r, l):
     f = j["auto"]["finish"]
     assert f["kept"] and f["kind"] == ("plane-to-plane" if f["noise_d"] < f["crossover_d"] else "mls"), f
     assert j["verification"]["verified"] and j["verification"]["verdict"] == "verified", j
+    # The pose covariance (row-major 6 x 6, symmetric) and its extent, in --json as on the wire.
+    c = j["verification"]["pose_covariance"]
+    assert len(c) == 36 and all(c[6 * a + b] == c[6 * b + a] for a in range(6) for b in range(6)), c
+    assert all(c[7 * k] > 0 for k in range(6)) and j["verification"]["pose_translation_sigma"] > 0, c
 assert r["verification"] == l["verification"], (r["verification"], l["verification"])
 PY
 grep -q "^verification: verified: " "$work/remote.txt" || fail "no verification line: $(tail -5 "$work/remote.txt")"
+grep -q "^verification: verified: .*; pose uncertainty (1 sigma, least certain direction): " "$work/remote.txt" \
+  || fail "no pose uncertainty in the verification line: $(grep '^verification' "$work/remote.txt")"
 
 # Another object is not verified: exit code 4, "NOT VERIFIED", auto.verified false in --json.
 python3 - "$work/sheet.xyz" <<'PY'

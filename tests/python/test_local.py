@@ -132,6 +132,11 @@ def test_register_recovers_the_ground_truth(bun000, bunny_target, gt, near_start
     # hardly any is left out of the directional test as lying on a sharp edge.
     assert 0 < v["normal_angle_median_deg"] < 10
     assert 0 <= v["edge_samples"] < 0.05 * v["covered"]
+    # The pose covariance: symmetric, positive definite, and its extent a small share of the band.
+    c = v["pose_covariance"]
+    assert c.shape == (6, 6) and np.allclose(c, c.T) and np.all(np.linalg.eigvalsh(c) > 0)
+    assert 0 < v["pose_translation_sigma"] < v["inlier_distance"] / 3
+    assert 0 < v["pose_rotation_sigma_deg"] < 1
     # The lengths it chose from the data, in the clouds' units (metres for the bunny).
     scales = result.scales
     assert scales["mean_spacing"] == pytest.approx(bunny_target.sampling_distance)

@@ -85,6 +85,29 @@ TEST(ResultCodecTest, TheSensorAndTheHiddenSamplesCrossTheWire) {
   EXPECT_DOUBLE_EQ(back.verification->visible_covered_fraction(), 3012.0 / (5280 - 2136));
 }
 
+// The pose covariance crosses the wire entry for entry (row-major), with its extent; a score
+// without one (a direction without evidence) has none after the trip.
+TEST(ResultCodecTest, ThePoseCovarianceCrossesTheWire) {
+  RegistrationResult result;
+  result.verification = VerificationScore{};
+  const auto round_trip = [](const RegistrationResult& r) {
+    v1::Result proto;
+    wire::ToProto(r, &proto);
+    return wire::FromProto(proto);
+  };
+  EXPECT_FALSE(round_trip(result).verification->pose_covariance.has_value());
+  Eigen::Matrix<double, 6, 6> covariance;
+  for (int k = 0; k < 36; ++k) covariance(k / 6, k % 6) = 1e-6 * (k + 1);
+  result.verification->pose_covariance = covariance;
+  result.verification->pose_rotation_sigma_deg = 0.0066;
+  result.verification->pose_translation_sigma = 0.0032;
+  const RegistrationResult back = round_trip(result);
+  ASSERT_TRUE(back.verification->pose_covariance.has_value());
+  EXPECT_EQ(*back.verification->pose_covariance, covariance);
+  EXPECT_EQ(back.verification->pose_rotation_sigma_deg, 0.0066);
+  EXPECT_EQ(back.verification->pose_translation_sigma, 0.0032);
+}
+
 // An ambiguous result's rival crosses the wire with its pose, origin and score; a result without
 // one has none after the trip.
 TEST(ResultCodecTest, TheRivalCrossesTheWire) {

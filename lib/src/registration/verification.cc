@@ -188,22 +188,37 @@ Vector6 MeasurePull(std::span<const Pull> pulls, const Vec3& centre, double leve
 // pose's smooth residual field) is the pull's to judge. Noise is independent from sample to
 // sample and leaves about 0; a surface that is not the target's shape (another object) leaves
 // residuals that neighbours share and no rigid motion removes.
-double CoherentResidual(std::span<const Pull> pulls, double radius, const Vec3& centre,
-                        double lever, const Vector6& step, int threads) {
-  if (pulls.size() < 12) return 0.0;
+// The same pairs give the spread of the point-to-plane gradient sum_i J_i r_i (J_i: StepJacobian)
+// under residuals that neighbours share: sum_i J_i r_i (J_i r_i + sum_j J_j r_j)^T over each
+// sample's neighbours j, the middle of a sandwich covariance (independent residuals leave the
+// first term alone). J r does not depend on the normal's sign.
+struct SharedResiduals {
+  double coherent = 0.0;
+  Matrix6 gradient_spread = Matrix6::Zero();  // symmetric
+};
+SharedResiduals MeasureSharedResiduals(std::span<const Pull> pulls, double radius,
+                                       const Vec3& centre, double lever, const Vector6& step,
+                                       int threads) {
+  SharedResiduals out;
+  if (pulls.size() < 12) return out;
   std::vector<Vec3> positions;
   std::vector<double> residuals;
+  std::vector<Vector6> gradients;  // J_i r_i
   positions.reserve(pulls.size());
   residuals.reserve(pulls.size());
+  gradients.reserve(pulls.size());
   for (const Pull& p : pulls) {
+    const Vector6 j = StepJacobian(p, centre, lever);
     positions.push_back(p.x);
-    residuals.push_back(p.across + StepJacobian(p, centre, lever).dot(step));
+    residuals.push_back(p.across + j.dot(step));
+    gradients.push_back(j * residuals.back());
   }
   const KdTree tree(positions);
   constexpr int kNeighbours = 7;  // the sample itself and six others
   // Each sample's products with its neighbours in parallel, summed in sample order after: the
   // same value for any thread count.
   std::vector<double> products(pulls.size(), 0.0);
+  std::vector<Vector6> neighbour_gradients(pulls.size(), Vector6::Zero());
   std::vector<std::uint8_t> pair_counts(pulls.size(), 0);
   ParallelFor(
       pulls.size(), threads,
@@ -217,6 +232,7 @@ double CoherentResidual(std::span<const Pull> pulls, double radius, const Vec3& 
             if (j == i || distance_squared[k] > radius * radius) continue;
             const double sign = pulls[i].normal.dot(pulls[j].normal) < 0.0 ? -1.0 : 1.0;
             products[i] += residuals[i] * sign * residuals[j];
+            neighbour_gradients[i] += gradients[j];
             ++pair_counts[i];
           }
         }
@@ -224,11 +240,15 @@ double CoherentResidual(std::span<const Pull> pulls, double radius, const Vec3& 
       256);
   double sum = 0.0;
   long pairs = 0;
+  Matrix6 spread = Matrix6::Zero();
   for (std::size_t i = 0; i < pulls.size(); ++i) {
     sum += products[i];
     pairs += pair_counts[i];
+    spread.noalias() += gradients[i] * (gradients[i] + neighbour_gradients[i]).transpose();
   }
-  return pairs > 0 ? std::sqrt(std::max(0.0, sum / pairs)) : 0.0;
+  out.coherent = pairs > 0 ? std::sqrt(std::max(0.0, sum / pairs)) : 0.0;
+  out.gradient_spread = 0.5 * (spread + spread.transpose());
+  return out;
 }
 
 // Where the data move the pose: up to kSettleSteps point-to-plane steps on the target's
@@ -316,6 +336,39 @@ enum class DirectionCheck { kFixed, kDisagrees, kUnconstrained };
 // least `floor`.
 double SettleBound(const VerificationScore& s, const VerificationOptions& o, double floor) {
   return std::max(o.max_settle_sigmas * s.inlier_distance / o.band_per_noise, floor);
+}
+
+// The covariance of (lever * rotation vector, translation at the centre) as the sandwich
+// A^-1 B A^-1: A the point-to-plane information, B the spread of the gradient (residuals times
+// their Jacobians, with what neighbours share; its negative eigenvalues, sampling noise of the
+// neighbours' products, dropped). For independent residuals of variance s^2, B = s^2 A and the
+// covariance is s^2 A^-1. Empty unless A is positive definite (every direction constrained).
+std::optional<Matrix6> CovarianceAtCentre(const Matrix6& information,
+                                          const Matrix6& gradient_spread) {
+  const Eigen::SelfAdjointEigenSolver<Matrix6> solver(information);
+  if (solver.info() != Eigen::Success) return std::nullopt;
+  const Vector6& eigenvalues = solver.eigenvalues();  // ascending
+  if (!(eigenvalues[0] > 1e-12 * eigenvalues[5])) return std::nullopt;
+  const Eigen::SelfAdjointEigenSolver<Matrix6> spread(gradient_spread);
+  if (spread.info() != Eigen::Success) return std::nullopt;
+  const Matrix6 meat = spread.eigenvectors() * spread.eigenvalues().cwiseMax(0.0).asDiagonal() *
+                       spread.eigenvectors().transpose();
+  const Matrix6 inverse = solver.eigenvectors() * eigenvalues.cwiseInverse().asDiagonal() *
+                          solver.eigenvectors().transpose();
+  return Matrix6(inverse * meat * inverse);
+}
+
+// That covariance for (rotation vector, translation at the origin): a rotation omega about the
+// centre c moves the origin by -omega x c = c x omega. Symmetric to the last bit.
+Matrix6 CovarianceAtOrigin(const Matrix6& at_centre, const Vec3& c, double lever) {
+  Eigen::Matrix3d cross;
+  cross << 0.0, -c.z(), c.y(), c.z(), 0.0, -c.x(), -c.y(), c.x(), 0.0;
+  Matrix6 map = Matrix6::Zero();
+  map.topLeftCorner<3, 3>() = Eigen::Matrix3d::Identity() / lever;
+  map.bottomLeftCorner<3, 3>() = cross / lever;
+  map.bottomRightCorner<3, 3>() = Eigen::Matrix3d::Identity();
+  const Matrix6 covariance = map * at_centre * map.transpose();
+  return 0.5 * (covariance + covariance.transpose());
 }
 
 Verdict Judge(const VerificationScore& s, DirectionCheck direction, const VerificationOptions& o,
@@ -480,8 +533,9 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   score.direction_centre = centre;
   score.direction_lever = lever;
   const Vector6 pull_step = MeasurePull(pulls, centre, lever, score);
-  score.coherent_residual =
-      CoherentResidual(pulls, 2.0 * voxels.voxel, centre, lever, pull_step, threads);
+  const SharedResiduals shared =
+      MeasureSharedResiduals(pulls, 2.0 * voxels.voxel, centre, lever, pull_step, threads);
+  score.coherent_residual = shared.coherent;
   if (score.inliers > 0) {
     const double noise_sigma = score.inlier_distance / options.band_per_noise;
     score.settle_displacement = SettleDisplacement(
@@ -502,6 +556,7 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   std::vector<Vector6> source_jacobians(points.size(), Vector6::Zero());
   std::vector<Vector6> target_jacobians(points.size(), Vector6::Zero());
   Matrix6 agreeing_information = Matrix6::Zero();
+  Matrix6 shared_information = Matrix6::Zero();  // the agreeing samples' (source x target)
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (!state[i] || !(normals[i].squaredNorm() > 0.0) ||
         !(target_normals[i].squaredNorm() > 0.0)) {
@@ -516,8 +571,10 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
     }
     source_jacobians[i] << x.cross(n) / lever, n;
     target_jacobians[i] << x.cross(m) / lever, m;
-    if (state[i] == 2)
+    if (state[i] == 2) {
       agreeing_information.noalias() += source_jacobians[i] * source_jacobians[i].transpose();
+      shared_information.noalias() += source_jacobians[i] * target_jacobians[i].transpose();
+    }
   }
   DirectionCheck direction = DirectionCheck::kFixed;
   const Eigen::SelfAdjointEigenSolver<Matrix6> solver(agreeing_information);
@@ -586,8 +643,30 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
           static_cast<double>(agreeing) / score.worst_direction_samples;
     }
   }
+  if (score.inliers > 0) {
+    // Symmetric: the sum of s t^T has the expectation of the noise-free information.
+    const std::optional<Matrix6> at_centre = CovarianceAtCentre(
+        0.5 * (shared_information + shared_information.transpose()), shared.gradient_spread);
+    if (at_centre) {
+      score.pose_covariance = CovarianceAtOrigin(*at_centre, centre, lever);
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> rotation(
+          score.pose_covariance->topLeftCorner<3, 3>(), Eigen::EigenvaluesOnly);
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> translation(
+          at_centre->bottomRightCorner<3, 3>(), Eigen::EigenvaluesOnly);
+      score.pose_rotation_sigma_deg =
+          std::sqrt(std::max(rotation.eigenvalues().maxCoeff(), 0.0)) * 180.0 / M_PI;
+      score.pose_translation_sigma = std::sqrt(std::max(translation.eigenvalues().maxCoeff(), 0.0));
+    }
+  }
   score.verdict = Judge(score, direction, options, rms_per_band, floor);
   return score;
+}
+
+std::optional<Matrix6> PoseCovariance(const Matrix6& information, const Matrix6& gradient_spread,
+                                      const Vec3& centre, double lever) {
+  const std::optional<Matrix6> at_centre = CovarianceAtCentre(information, gradient_spread);
+  if (!at_centre || !(lever > 0.0)) return std::nullopt;
+  return CovarianceAtOrigin(*at_centre, centre, lever);
 }
 
 std::optional<Vec3> SourceSensor(const Target& target, const PointCloud& source, const KdTree& tree,

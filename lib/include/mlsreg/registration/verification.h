@@ -30,6 +30,7 @@
 // back toward it: one step explains much of its residuals, and it settles far away.
 #pragma once
 
+#include <optional>
 #include <span>
 #include <string_view>
 #include <vector>
@@ -195,6 +196,19 @@ struct VerificationScore {
   // samples left out of the directional test as sitting on sharp edges (see feature_angle_*).
   double normal_angle_median_deg = 0.0;
   int edge_samples = 0;
+  // The pose's covariance: the small motion exp(xi) that would take the pose to the truth, xi =
+  // (rotation vector in radians, translation) in the target's frame about its origin, has this
+  // covariance under the agreeing samples' evidence (the point-to-plane information their source
+  // and target normals share, and the inliers' residuals with the part neighbours share:
+  // PoseCovariance). Empty
+  // when some direction of motion carries no such information. A covariance alone does not say
+  // a pose is right (a wrong pose can fit its wrong partners precisely): read it with the
+  // verdict.
+  std::optional<Eigen::Matrix<double, 6, 6>> pose_covariance;
+  // Its extent, 1 sigma along the least certain direction: a rotation (degrees), and a
+  // translation at the covered samples' centre (direction_centre), where the two do not mix.
+  double pose_rotation_sigma_deg = 0.0;
+  double pose_translation_sigma = 0.0;
   Verdict verdict = Verdict::kTooLittleOverlap;
 
   bool verified() const { return verdict == Verdict::kVerified; }
@@ -258,6 +272,16 @@ struct SourceMeasures {
   std::optional<Vec3> sensor;
 };
 SourceMeasures MeasureSource(const Target& target, const PointCloud& source, int threads = 1);
+
+// A pose's covariance from point-to-plane evidence gathered about `centre`, over the parameters
+// (rotation vector times `lever`, translation at `centre`): the sandwich A^-1 B A^-1 of the
+// `information` A and the `gradient_spread` B, the covariance of the gradient sum_i J_i r_i
+// (s^2 A for independent residuals of variance s^2; larger where neighbours share residuals).
+// Returned for xi = (rotation vector, translation at the origin), as
+// VerificationScore::pose_covariance; empty when `information` is not positive definite.
+std::optional<Eigen::Matrix<double, 6, 6>> PoseCovariance(
+    const Eigen::Matrix<double, 6, 6>& information,
+    const Eigen::Matrix<double, 6, 6>& gradient_spread, const Vec3& centre, double lever);
 // The source's sensor alone, on its index `tree`: none when the target shows no sensor (the
 // test needs both) or the source's sampling shows none.
 std::optional<Vec3> SourceSensor(const Target& target, const PointCloud& source, const KdTree& tree,
