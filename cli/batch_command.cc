@@ -16,6 +16,7 @@
 #include "cli/batch_report.h"
 #include "cli/commands.h"
 #include "cli/connection_flags.h"
+#include "cli/exit_codes.h"
 #include "cli/registration_flags.h"
 #include "cli/report.h"
 #include "cli/shard_flags.h"
@@ -53,19 +54,30 @@ bool IsJsonl(const std::string& path) {
   return std::filesystem::path(path).extension() == ".jsonl";
 }
 
+// One extent of the result's pose covariance (VerificationScore::pose_rotation_sigma_deg or
+// pose_translation_sigma), empty when it has none.
+std::string PoseSigma(const JobOutcome& o, double VerificationScore::*sigma) {
+  if (!o.verification || !o.verification->pose_covariance) return "";
+  return absl::StrFormat("%.6g", (*o.verification).*sigma);
+}
+
 std::string CsvRow(const JobOutcome& o) {
-  std::vector<std::string> f = {o.id,
-                                o.error.empty() ? "ok" : o.error,
-                                o.target_id,
-                                o.pose_error ? absl::StrFormat("%.6g", o.pose_error->rmse_d) : "",
-                                o.pose_error ? (o.pose_error->success ? "1" : "0") : "",
-                                absl::StrFormat("%d", o.iterations),
-                                o.termination,
-                                o.error.empty() ? FormatTransform(o.transform) : "",
-                                absl::StrFormat("%.4f", o.seconds),
-                                absl::StrFormat("%d", o.attempts),
-                                o.request_id,
-                                o.verified ? (*o.verified ? "1" : "0") : ""};
+  std::vector<std::string> f = {
+      o.id,
+      o.error.empty() ? "ok" : o.error,
+      o.target_id,
+      o.pose_error ? absl::StrFormat("%.6g", o.pose_error->rmse_d) : "",
+      o.pose_error ? (o.pose_error->success ? "1" : "0") : "",
+      absl::StrFormat("%d", o.iterations),
+      o.termination,
+      o.error.empty() ? FormatTransform(o.transform) : "",
+      absl::StrFormat("%.4f", o.seconds),
+      absl::StrFormat("%d", o.attempts),
+      o.request_id,
+      o.verified ? (*o.verified ? "1" : "0") : "",
+      o.verification ? std::string(VerdictName(o.verification->verdict)) : "",
+      PoseSigma(o, &VerificationScore::pose_rotation_sigma_deg),
+      PoseSigma(o, &VerificationScore::pose_translation_sigma)};
   for (std::string& s : f) s = CsvField(s);
   return absl::StrJoin(f, ",");
 }
@@ -87,6 +99,15 @@ std::string JsonRow(const JobOutcome& o) {
     j["transform"] = t;
   }
   if (o.verified) j["verified"] = *o.verified;
+  if (const std::optional<VerificationScore>& v = o.verification) {
+    j["verdict"] = std::string(VerdictName(v->verdict));
+    if (v->pose_covariance) {
+      std::vector<double> c(v->pose_covariance->data(), v->pose_covariance->data() + 36);
+      j["pose_covariance"] = c;  // symmetric: the same row- or column-major
+      j["pose_rotation_sigma_deg"] = v->pose_rotation_sigma_deg;
+      j["pose_translation_sigma"] = v->pose_translation_sigma;
+    }
+  }
   if (o.pose_error) {
     j["rmse_d"] = o.pose_error->rmse_d;
     j["success"] = o.pose_error->success;
@@ -186,13 +207,13 @@ int RunBatch(const BatchArgs& args) {
   }
   if (!append && !IsJsonl(args.results)) {
     out << "id,status,target_id,rmse_d,success,iterations,termination,transform,seconds,"
-           "attempts,request_id,verified\n";
+           "attempts,request_id,verified,verdict,pose_rotation_sigma_deg,pose_translation_sigma\n";
   }
   std::mutex mutex;
   std::vector<JobOutcome> outcomes;  // for --report
   const auto batch_start = std::chrono::steady_clock::now();
   std::atomic<std::size_t> next{0};
-  std::size_t done = 0, failed = 0;
+  std::size_t done = 0, failed = 0, not_verified = 0;
   ProgressPrinter progress;
   auto worker = [&] {
     for (std::size_t i = next++; i < jobs.size(); i = next++) {
@@ -218,7 +239,12 @@ int RunBatch(const BatchArgs& args) {
           o.pose_error = r->ground_truth_error;
           o.attempts = r->attempts;
           o.request_id = r->request_id;
-          if (r->result.auto_report) o.verified = r->result.auto_report->verified;
+          o.verification = r->result.verification;  // any method's verdict
+          if (o.verification) {
+            o.verified = o.verification->verified();
+          } else if (r->result.auto_report) {
+            o.verified = r->result.auto_report->verified;
+          }
         }
       }
       o.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -228,6 +254,7 @@ int RunBatch(const BatchArgs& args) {
       if (!args.report.empty()) outcomes.push_back(o);
       ++done;
       failed += !o.error.empty();
+      not_verified += o.error.empty() && o.verified && !*o.verified;
       progress.Update(done, jobs.size(),
                       o.error.empty() ? absl::StrFormat("%s ok (%d iterations)", o.id, o.iterations)
                                       : absl::StrFormat("%s FAILED: %s", o.id, o.error));
@@ -236,8 +263,9 @@ int RunBatch(const BatchArgs& args) {
   std::vector<std::thread> threads;
   for (int t = 0; t < std::max(1, args.concurrency); ++t) threads.emplace_back(worker);
   for (std::thread& t : threads) t.join();
-  std::fprintf(stderr, "mlsreg batch: %zu done, %zu failed; results in %s\n", done - failed, failed,
-               args.results.c_str());
+  std::fprintf(stderr,
+               "mlsreg batch: %zu done (%zu of them not verified), %zu failed; results in %s\n",
+               done - failed, not_verified, failed, args.results.c_str());
   if (!args.report.empty()) {
     const BatchReportInfo info{
         args.manifest, std::string(MethodName(options->method)), args.connection.options().address,
@@ -249,7 +277,8 @@ int RunBatch(const BatchArgs& args) {
     }
     std::fprintf(stderr, "mlsreg batch: report in %s\n", args.report.c_str());
   }
-  return failed == 0 ? 0 : 1;
+  if (failed > 0) return kExitFailed;
+  return not_verified > 0 ? kExitNotVerified : kExitOk;
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include "absl/status/status.h"
 #include "mlsreg/core/transform.h"
 #include "mlsreg/evaluation/metrics.h"
+#include "mlsreg/registration/verification.h"
 
 namespace mlsreg::cli {
 
@@ -20,7 +21,9 @@ struct JobOutcome {
   std::optional<PoseError> pose_error;
   int iterations = 0, attempts = 0;
   double seconds = 0.0;
-  std::optional<bool> verified;  // method auto: whether the result verified
+  std::optional<bool> verified;  // whether the result verified (any method; unset: not verified)
+  // The verification's score (verdict, pose covariance) when the registration ran one.
+  std::optional<VerificationScore> verification;
 };
 
 struct BatchReportInfo {

@@ -38,10 +38,11 @@ inline constexpr ExitCode kExitCodes[] = {
      "internal error (batch: some job failed; health: some server is not serving)"},
     {kExitBadInput, "all", "bad arguments or input (the message names the flag or field)"},
     {kExitMissed, "eval", "some run failed or missed the 5 d success threshold"},
-    {kExitNotVerified, "register, verify, align",
+    {kExitNotVerified, "register, verify, align, batch",
      "the registration ran, but its result does not verify against the target (verify: the "
      "given transform does not; align: some scan is joined to the anchor by no verified edge, "
-     "and the message names it): the printed transform must not be trusted"},
+     "and the message names it; batch: every job ran, and some result did not verify: its row "
+     "says verified 0 and the verdict): the printed transform must not be trusted"},
 };
 
 }  // namespace mlsreg::cli

@@ -17,7 +17,7 @@ if ! diff -u docs/cli.md "${TMPDIR:-/tmp}/cli.md.$$" > "${TMPDIR:-/tmp}/cli.diff
   fail "docs/cli.md is out of date: run build/mlsreg manual > docs/cli.md"
 fi
 rm -f "${TMPDIR:-/tmp}/cli.md.$$" "${TMPDIR:-/tmp}/cli.diff.$$"
-grep -q "^| 4 | register, verify, align |" docs/cli.md || fail "no exit code 4 in docs/cli.md"
+grep -q "^| 4 | register, verify, align, batch |" docs/cli.md || fail "no exit code 4 in docs/cli.md"
 grep -q -- "--auto-candidates" docs/cli.md || fail "register's parameter flags missing from docs/cli.md"
 
 # Completion: source the script and ask it as bash would.

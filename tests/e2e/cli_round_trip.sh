@@ -156,6 +156,40 @@ set -e
 [ "$code" -eq 1 ] || fail "batch with a failing job exited $code: $(cat "$work/batch.log")"
 [ "$(grep -c ',ok,' "$work/results.csv")" -eq 2 ] || fail "batch rows: $(cat "$work/results.csv")"
 grep -q '^b,.*missing.ply' "$work/results.csv" || fail "failed job not reported"
+# Every ok row carries its verdict and the pose covariance's extent, the failed one neither.
+python3 - "$work/results.csv" <<'PY' || fail "batch verdict columns: $(cat "$work/results.csv")"
+import csv, sys
+rows = {r["id"]: r for r in csv.DictReader(open(sys.argv[1]))}
+for job in "ac":
+    r = rows[job]
+    assert r["verified"] == "1" and r["verdict"] == "verified", r
+    assert float(r["pose_rotation_sigma_deg"]) > 0 and float(r["pose_translation_sigma"]) > 0, r
+assert rows["b"]["verdict"] == "" and rows["b"]["pose_translation_sigma"] == "", rows["b"]
+PY
+# Any method's verdict reaches the batch row, not only auto's, and agrees with the truth: G-ICP
+# from the identity, 45 degrees off the truth, ends far from it (a row not verified, as its
+# verdict says, and exit 4: every job ran, one result must not be trusted); from the truth it
+# verifies (exit 0; JSONL: the covariance in full).
+head -2 "$work/jobs.csv" > "$work/one_job.csv"
+{ echo "id,source,target,gt,init"; tail -1 "$work/one_job.csv" | sed 's/^a,/near,/'; } > "$work/near_job.csv"
+sed -i "2s/\$/,$GT/" "$work/near_job.csv"
+for job in one_job near_job; do
+  set +e
+  "$MLSREG" batch --server "$A" --manifest "$work/$job.csv" --results "$work/$job.jsonl" \
+    --method g-icp --samples 500 2> "$work/$job.log"
+  echo $? > "$work/$job.code"
+  set -e
+done
+[ "$(cat "$work/one_job.code")" -eq 4 ] || fail "batch with an unverified result exited $(cat "$work/one_job.code"): $(cat "$work/one_job.log")"
+[ "$(cat "$work/near_job.code")" -eq 0 ] || fail "batch with every result verified exited $(cat "$work/near_job.code")"
+grep -q "1 done (1 of them not verified), 0 failed" "$work/one_job.log" || fail "batch summary: $(cat "$work/one_job.log")"
+python3 - "$work/one_job.jsonl" "$work/near_job.jsonl" <<'PY' || fail "g-icp batch rows: $(cat "$work"/*_job.jsonl)"
+import json, sys
+far, near = (json.loads(open(path).readline()) for path in sys.argv[1:])
+assert far["verified"] is False and far["verdict"] not in ("", "verified") and not far["success"], far
+assert near["verified"] is True and near["verdict"] == "verified" and near["success"], near
+assert len(near["pose_covariance"]) == 36 and near["pose_translation_sigma"] > 0, near
+PY
 # The HTML report: self-contained (nothing to fetch), the failure first, every job in the table,
 # the alpha-recall curve (ground truth is known) and the latency histogram.
 python3 - "$work/report.html" <<'PY' || fail "--report: $(head -c 600 "$work/report.html")"
