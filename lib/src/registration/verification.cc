@@ -192,6 +192,7 @@ Vector6 MeasurePull(std::span<const Pull> pulls, const Vec3& centre, double leve
 // under residuals that neighbours share: sum_i J_i r_i (J_i r_i + sum_j J_j r_j)^T over each
 // sample's neighbours j, the middle of a sandwich covariance (independent residuals leave the
 // first term alone). J r does not depend on the normal's sign.
+constexpr std::size_t kMinSharedResidualSamples = 12;  // fewer: no measure (and no covariance)
 struct SharedResiduals {
   double coherent = 0.0;
   Matrix6 gradient_spread = Matrix6::Zero();  // symmetric
@@ -200,7 +201,7 @@ SharedResiduals MeasureSharedResiduals(std::span<const Pull> pulls, double radiu
                                        const Vec3& centre, double lever, const Vector6& step,
                                        int threads) {
   SharedResiduals out;
-  if (pulls.size() < 12) return out;
+  if (pulls.size() < kMinSharedResidualSamples) return out;
   std::vector<Vec3> positions;
   std::vector<double> residuals;
   std::vector<Vector6> gradients;  // J_i r_i
@@ -643,7 +644,7 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
           static_cast<double>(agreeing) / score.worst_direction_samples;
     }
   }
-  if (score.inliers > 0) {
+  if (pulls.size() >= kMinSharedResidualSamples) {
     // Symmetric: the sum of s t^T has the expectation of the noise-free information.
     const std::optional<Matrix6> at_centre = CovarianceAtCentre(
         0.5 * (shared_information + shared_information.transpose()), shared.gradient_spread);
