@@ -83,7 +83,7 @@ std::string FormatVerification(const VerificationScore& v) {
           ? absl::StrFormat("; pose uncertainty (1 sigma, least certain direction): %.3g deg, "
                             "%.3g at the overlap's centre",
                             v.pose_rotation_sigma_deg, v.pose_translation_sigma)
-          : std::string("; pose uncertainty: unbounded (a direction without evidence)"));
+          : std::string("; pose uncertainty: unbounded (some direction has too little evidence)"));
   if (v.verified()) return "verification: verified: " + evidence;
   return absl::StrFormat("verification: NOT VERIFIED (%s; do not trust the transform): %s",
                          VerdictName(v.verdict), evidence);
