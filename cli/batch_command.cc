@@ -102,8 +102,7 @@ std::string JsonRow(const JobOutcome& o) {
   if (const std::optional<VerificationScore>& v = o.verification) {
     j["verdict"] = std::string(VerdictName(v->verdict));
     if (v->pose_covariance) {
-      std::vector<double> c(v->pose_covariance->data(), v->pose_covariance->data() + 36);
-      j["pose_covariance"] = c;  // symmetric: the same row- or column-major
+      j["pose_covariance"] = PoseCovarianceJson(*v);
       j["pose_rotation_sigma_deg"] = v->pose_rotation_sigma_deg;
       j["pose_translation_sigma"] = v->pose_translation_sigma;
     }

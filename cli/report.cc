@@ -232,16 +232,18 @@ nlohmann::json IterationJson(const IterationReport& r) {
           {"transform", MatrixJson(r.transform)}};
 }
 
+nlohmann::json PoseCovarianceJson(const VerificationScore& v) {
+  if (!v.pose_covariance) return nullptr;
+  nlohmann::json covariance = nlohmann::json::array();
+  for (int row = 0; row < 6; ++row) {
+    for (int col = 0; col < 6; ++col) covariance.push_back((*v.pose_covariance)(row, col));
+  }
+  return covariance;
+}
+
 nlohmann::json VerificationJson(const VerificationScore& v) {
   nlohmann::json direction = nlohmann::json::array();
   for (int k = 0; k < 6; ++k) direction.push_back(v.worst_direction[k]);
-  nlohmann::json covariance = nullptr;  // row-major 6 x 6, or null when unbounded
-  if (v.pose_covariance) {
-    covariance = nlohmann::json::array();
-    for (int row = 0; row < 6; ++row) {
-      for (int col = 0; col < 6; ++col) covariance.push_back((*v.pose_covariance)(row, col));
-    }
-  }
   return {{"verified", v.verified()},
           {"verdict", std::string(VerdictName(v.verdict))},
           {"samples", v.samples},
@@ -272,7 +274,7 @@ nlohmann::json VerificationJson(const VerificationScore& v) {
           {"worst_direction_error", v.worst_direction_error},
           {"normal_angle_median_deg", v.normal_angle_median_deg},
           {"edge_samples", v.edge_samples},
-          {"pose_covariance", covariance},
+          {"pose_covariance", PoseCovarianceJson(v)},
           {"pose_rotation_sigma_deg", v.pose_rotation_sigma_deg},
           {"pose_translation_sigma", v.pose_translation_sigma}};
 }
