@@ -196,8 +196,10 @@ int RunAlign(const AlignArgs& args) {
     }
     std::printf("\n");
   }
-  std::printf("aligned in %.2f s (%d pose-graph iterations)\n", result->seconds,
-              result->graph_iterations);
+  std::printf(
+      "aligned in %.2f s (%d pose-graph iterations; the final solve weighed %d kept edges by "
+      "their pose covariance)\n",
+      result->seconds, result->graph_iterations, result->covariance_weighted_edges);
   if (!args.out.empty()) {
     if (absl::Status s = WritePoses(args.out, result->poses, args.scans); !s.ok())
       return ExitFor("align", s);
@@ -228,6 +230,7 @@ int RunAlign(const AlignArgs& args) {
     j["unverified_scans"] = nlohmann::json::array();
     for (int i : result->unverified_scans) j["unverified_scans"].push_back(args.scans[i]);
     j["seconds"] = result->seconds;
+    j["covariance_weighted_edges"] = result->covariance_weighted_edges;
     for (std::size_t i = 0; i < result->poses.size(); ++i) {
       nlohmann::json scan = {{"scan", args.scans[i]},
                              {"pose", Row(result->poses[i])},

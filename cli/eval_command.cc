@@ -122,6 +122,9 @@ const char* kFixedColumns[] = {"manifest",
                                "verify_explained_fraction",
                                "verify_worst_direction_fraction",
                                "verify_band_d",
+                               "verify_pose_rotation_sigma_deg",
+                               "verify_pose_translation_sigma_d",
+                               "verify_pose_covariance",
                                "auto_chosen",
                                "auto_candidates",
                                "auto_early_exit",
@@ -232,8 +235,19 @@ std::vector<std::string> OutcomeCells(const std::string& path, const ManifestPro
     f.push_back(absl::StrFormat("%.4f", v->explained_fraction));
     f.push_back(absl::StrFormat("%.4f", v->worst_direction_fraction));
     f.push_back(absl::StrFormat("%.4f", v->inlier_distance_d));
+    // The pose covariance (registration/verification.h): empty cells when some direction has too
+    // little evidence for one.
+    if (const auto& c = v->pose_covariance) {
+      f.push_back(absl::StrFormat("%.6g", v->pose_rotation_sigma_deg));
+      f.push_back(absl::StrFormat("%.6g", v->pose_translation_sigma / r.sampling_distance));
+      std::vector<double> row_major;
+      for (int i = 0; i < 36; ++i) row_major.push_back((*c)(i / 6, i % 6));
+      f.push_back(JoinNumbers(row_major, "%.6g"));
+    } else {
+      f.insert(f.end(), 3, std::string());
+    }
   } else {
-    f.insert(f.end(), 6, std::string());
+    f.insert(f.end(), 9, std::string());
   }
   if (const std::optional<AutoReport>& a = r.auto_report; a && !a->candidates.empty()) {
     f.push_back(absl::StrFormat("%d", a->chosen));

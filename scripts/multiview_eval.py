@@ -176,10 +176,14 @@ def run_mlsreg(mlsreg, paths, start, pairs, method, work, extra=()):
     write_rows(os.path.join(work, "start.txt"), start)
     out = os.path.join(work, f"align-{method}-{pairs}.json")
     t = time.perf_counter()
-    subprocess.run([mlsreg, "align", "--scans", *paths, "--poses", os.path.join(work, "start.txt"),
-                    "--pairs", pairs, "--method", method, "--threads", "2", "--json", out, *extra],
-                   check=True, stdout=subprocess.DEVNULL)
+    run = subprocess.run([mlsreg, "align", "--scans", *paths, "--poses",
+                          os.path.join(work, "start.txt"), "--pairs", pairs, "--method", method,
+                          "--threads", "2", "--json", out, *extra], stdout=subprocess.DEVNULL)
     seconds = time.perf_counter() - t
+    # Exit 4: some scan rests on no verified edge (its pose is still written and scored here;
+    # j["unverified_scans"] names it).
+    if run.returncode not in (0, 4):
+        raise subprocess.CalledProcessError(run.returncode, run.args)
     j = json.load(open(out))
     poses = [np.array(s["pose"]).reshape(4, 4) for s in j["scans"]]
     return poses, j, seconds

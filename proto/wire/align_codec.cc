@@ -101,6 +101,7 @@ void ToProto(const AlignResult& r, v1::AlignScansResult* out) {
   out->set_loop_closure_error_d(r.loop_closure_error_d);
   out->set_sampling_distance(r.sampling_distance);
   out->set_graph_iterations(r.graph_iterations);
+  out->set_covariance_weighted_edges(r.covariance_weighted_edges);
   out->set_seconds(r.seconds);
   out->set_loop_closure_exceeded(r.loop_closure_exceeded);
   for (int i : r.unverified_scans) out->add_unverified_scans(i);
@@ -116,6 +117,7 @@ AlignResult FromProto(const v1::AlignScansResult& p) {
   r.loop_closure_error_d = p.loop_closure_error_d();
   r.sampling_distance = p.sampling_distance();
   r.graph_iterations = p.graph_iterations();
+  r.covariance_weighted_edges = p.covariance_weighted_edges();
   r.seconds = p.seconds();
   r.loop_closure_exceeded = p.loop_closure_exceeded();
   r.unverified_scans.assign(p.unverified_scans().begin(), p.unverified_scans().end());

@@ -265,6 +265,7 @@ class AlignResult:
     unverified_scans: list
     sampling_distance: float
     graph_iterations: int
+    covariance_weighted_edges: int
     seconds: float
 
 

@@ -266,7 +266,9 @@ py::dict AlignResultToPython(const AlignResult& r) {
                   py::arg("loop_closure_exceeded") = r.loop_closure_exceeded,
                   py::arg("unverified_scans") = r.unverified_scans,
                   py::arg("sampling_distance") = r.sampling_distance,
-                  py::arg("graph_iterations") = r.graph_iterations, py::arg("seconds") = r.seconds);
+                  py::arg("graph_iterations") = r.graph_iterations,
+                  py::arg("covariance_weighted_edges") = r.covariance_weighted_edges,
+                  py::arg("seconds") = r.seconds);
 }
 
 // The callback of an alignment: (edge dict, done, total).

@@ -96,7 +96,12 @@ assert j["method"] == "auto", j["method"]
 assert max(s["rotation_error_deg"] for s in j["scans"]) < 1.0, [s["rotation_error_deg"] for s in j["scans"]]
 assert j["unverified_scans"] == [], j["unverified_scans"]
 assert all(e["trusted"] == e["verification"]["verified"] for e in j["edges"]), j["edges"]
+# The final solve weighs every kept edge that has a pose covariance by it (all six do here).
+with_covariance = sum(e["kept"] and e["verification"]["pose_covariance"] is not None for e in j["edges"])
+assert j["covariance_weighted_edges"] == with_covariance == 6, (j["covariance_weighted_edges"], with_covariance)
 PY
+grep -q "the final solve weighed 6 kept edges by their pose covariance" "$work/six.txt" \
+  || fail "covariance weights: $(grep 'aligned in' "$work/six.txt")"
 "$MLSREG" align --scans "${six[@]}" --gt "$B/bun.conf" --threads 2 --method mls-sicp \
   --json "$work/mls.json" > "$work/mls.txt" || true
 grep -q "loop closure of the chained edges: .*WARNING: beyond 2 deg" "$work/mls.txt" \

@@ -43,6 +43,17 @@ for r in rows:  # the ground-truth trace ends where the final error is
     assert abs(float(r["trace_error_d"].split()[-1]) - float(r["rmse_d"])) < 1e-3 * max(1, float(r["rmse_d"]))
 ablation = list(csv.DictReader(open(f"{work}/ablation.csv")))
 assert {r["label"] for r in ablation} == {"normal + curvature"}
+# Every verified MLS-SICP result carries its pose covariance: 36 values, symmetric, its rotation
+# sigma the square root of the rotation block's largest eigenvalue (in degrees).
+import numpy as np
+verified = [r for r in rows if r["method"] == "mls-sicp" and r["verified"] == "1"]
+assert verified, [(r["id"], r["verdict"]) for r in rows if r["method"] == "mls-sicp"]
+for r in verified:
+    c = np.array(r["verify_pose_covariance"].split(), float).reshape(6, 6)
+    assert np.allclose(c, c.T, rtol=1e-4, atol=1e-30), r["id"]
+    sigma = np.degrees(np.sqrt(np.linalg.eigvalsh(c[:3, :3]).max()))
+    assert abs(sigma - float(r["verify_pose_rotation_sigma_deg"])) <= 1e-3 * sigma, (r["id"], sigma)
+    assert float(r["verify_pose_translation_sigma_d"]) > 0, r["id"]
 PY
 
 /usr/bin/python3 "$SRC/scripts/plot_evaluation.py" --results "$work" --figures "$work/figures" \

@@ -51,7 +51,10 @@ std::vector<PoseGraphEdge> ExactRingEdges(const std::vector<Matrix4>& truth) {
   std::vector<PoseGraphEdge> edges;
   for (int i = 0; i < n; ++i) {
     const int j = (i + 1) % n;
-    edges.push_back({i, j, truth[i].inverse() * truth[j], information});
+    edges.push_back({.from = i,
+                     .to = j,
+                     .measurement = truth[i].inverse() * truth[j],
+                     .information = information});
   }
   return edges;
 }
@@ -78,7 +81,10 @@ TEST(PoseGraphTest, ACorruptedEdgeIsDroppedAndTheOthersGiveTheTruth) {
   // One more edge per pose pair (i, i+2), so that dropping any single edge keeps the graph whole.
   for (int i = 0; i < 8; ++i) {
     const int j = (i + 2) % 8;
-    edges.push_back({i, j, truth[i].inverse() * truth[j], edges[0].information});
+    edges.push_back({.from = i,
+                     .to = j,
+                     .measurement = truth[i].inverse() * truth[j],
+                     .information = edges[0].information});
   }
   edges[3].measurement = Pose(20.0 * kPi / 180.0, Vec3(0.3, 0, 0), Vec3(1, 1, 0)) *
                          edges[3].measurement;  // 20 degrees and 0.3 off
@@ -102,6 +108,58 @@ TEST(PoseGraphTest, AnEdgeThatIsTheOnlyLinkIsKeptEvenWhenItDisagrees) {
   auto result = OptimisePoseGraph(truth, edges);
   ASSERT_TRUE(result.ok());
   for (bool kept : result->kept) EXPECT_TRUE(kept);
+}
+
+// A triangle of translations: 0 at the origin, 1 ten along x, 2 ten along x and y. The edge
+// (0, 1) is 0.5 off along x, a direction its covariance says it barely knows (a bare road);
+// the edges (1, 2) and (0, 2) are exact and certain. Each measurement is good to 0.01 elsewhere.
+struct UncertainTriangle {
+  std::vector<Matrix4> truth{Pose(0, Vec3::Zero()), Pose(0, Vec3(10, 0, 0)),
+                             Pose(0, Vec3(10, 10, 0))};
+  std::vector<PoseGraphEdge> edges;
+  UncertainTriangle() {
+    Matrix6 certain = Matrix6::Identity() * 1e-4;  // 0.01 rad and 0.01 per direction
+    Matrix6 slides_along_x = certain;
+    slides_along_x(3, 3) = 1.0;  // translation x: 1 sigma = 1
+    const auto edge = [&](int i, int j) { return truth[i].inverse() * truth[j]; };
+    edges.push_back(
+        {0, 1, Pose(0, Vec3(0.5, 0, 0)) * edge(0, 1), Matrix6::Identity(), slides_along_x});
+    edges.push_back({1, 2, edge(1, 2), Matrix6::Identity(), certain});
+    edges.push_back({0, 2, edge(0, 2), Matrix6::Identity(), certain});
+  }
+};
+
+TEST(PoseGraphTest, TheFinalSolveTrustsEachEdgeAlongTheDirectionsItsCovarianceFixes) {
+  const UncertainTriangle triangle;
+  auto weighed = OptimisePoseGraph(triangle.truth, triangle.edges);
+  ASSERT_TRUE(weighed.ok()) << weighed.status();
+  EXPECT_EQ(weighed->covariance_weighted, 3);
+  for (bool kept : weighed->kept) EXPECT_TRUE(kept);  // 0.5 disagrees less than reject_above_d
+  // The certain edges fix pose 1 along x: the 0.5 of edge (0, 1) moves it by 0.5 * 1e-4 / (1 +
+  // 2e-4) at most.
+  for (int i = 0; i < 3; ++i)
+    EXPECT_LT(TranslationError(weighed->poses[i], triangle.truth[i]), 1e-3);
+
+  // Weighed by `information` alone (equal for all three), the 0.5 spreads over the loop.
+  PoseGraphOptions options;
+  options.weigh_by_covariance = false;
+  auto unweighed = OptimisePoseGraph(triangle.truth, triangle.edges, options);
+  ASSERT_TRUE(unweighed.ok());
+  EXPECT_EQ(unweighed->covariance_weighted, 0);
+  EXPECT_GT(TranslationError(unweighed->poses[1], triangle.truth[1]), 0.1);
+}
+
+TEST(PoseGraphTest, AnEdgeWithoutCovarianceIsWeighedLikeItsNeighboursInformation) {
+  UncertainTriangle triangle;
+  // Edge (1, 2) loses its covariance; its `information` (1 per unit twist) is rescaled by the
+  // others' ratio (1e4: trace(covariance * information) = 6e-4 on edge (0, 2)), so it stays as
+  // certain as they are, and the x error of edge (0, 1) still goes nowhere.
+  triangle.edges[1].covariance.reset();
+  auto result = OptimisePoseGraph(triangle.truth, triangle.edges);
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_EQ(result->covariance_weighted, 2);
+  EXPECT_LT(TranslationError(result->poses[1], triangle.truth[1]), 1e-3);
+  EXPECT_LT(TranslationError(result->poses[2], triangle.truth[2]), 1e-3);
 }
 
 // ---- AlignScans on a ring of views

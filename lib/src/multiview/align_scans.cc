@@ -271,7 +271,7 @@ absl::StatusOr<AlignResult> AlignTargets(const std::vector<std::shared_ptr<const
   }
   {
     std::vector<PoseGraphEdge> graph;
-    for (const auto& [i, j] : pairs) graph.push_back({i, j});
+    for (const auto& [i, j] : pairs) graph.push_back({.from = i, .to = j});
     std::vector<int> unreachable;
     if (!IsConnected(n, graph, nullptr, &unreachable)) {
       return absl::InvalidArgumentError(absl::StrCat(
@@ -346,7 +346,8 @@ absl::StatusOr<AlignResult> AlignTargets(const std::vector<std::shared_ptr<const
     const bool trusted = e.verification.verified() &&
                          e.registration.termination != Termination::kTooFewCorrespondences;
     graph.push_back({e.from, e.to, e.relative,
-                     e.information * (e.correspondences / mean_correspondences), trusted});
+                     e.information * (e.correspondences / mean_correspondences),
+                     e.verification.pose_covariance, trusted});
   }
   result.chained_poses = ChainedPoses(n, options.anchor, graph);
   PoseGraphOptions graph_options = options.graph;
@@ -355,6 +356,7 @@ absl::StatusOr<AlignResult> AlignTargets(const std::vector<std::shared_ptr<const
   if (!solved.ok()) return solved.status();
   result.poses = solved->poses;
   result.graph_iterations = solved->iterations;
+  result.covariance_weighted_edges = solved->covariance_weighted;
   for (std::size_t e = 0; e < result.edges.size(); ++e) {
     result.edges[e].residual_before_d = solved->residual_before_d[e];
     result.edges[e].residual_after_d = solved->residual_after_d[e];

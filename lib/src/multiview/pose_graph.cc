@@ -67,7 +67,47 @@ struct PoseBlocks {
   }
 };
 
-int Solve(PoseBlocks& blocks, const std::vector<PoseGraphEdge>& edges, const std::vector<bool>& use,
+// Each edge's information in a solve: `information`, or for the final solve its covariance's
+// inverse (PoseGraphOptions::weigh_by_covariance). Only the edges in `use` are weighed.
+struct EdgeWeights {
+  std::vector<Matrix6> information;
+  int covariance_weighted = 0;
+};
+
+EdgeWeights WeighEdges(const std::vector<PoseGraphEdge>& edges, const std::vector<bool>& use,
+                       bool by_covariance) {
+  EdgeWeights weights;
+  for (const PoseGraphEdge& edge : edges) weights.information.push_back(edge.information);
+  if (!by_covariance) return weights;
+  // The covariance's inverse where it is positive definite, and for each such edge the scale
+  // that makes `information` as strong: trace(covariance * scale * information) = 6.
+  std::vector<std::optional<Matrix6>> inverse(edges.size());
+  std::vector<double> scales;
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    if (!use[e] || !edges[e].covariance) continue;
+    const Matrix6 c = 0.5 * (*edges[e].covariance + edges[e].covariance->transpose());
+    const Eigen::LLT<Matrix6> llt(c);
+    if (llt.info() != Eigen::Success) continue;
+    inverse[e] = llt.solve(Matrix6::Identity());
+    const double strength = (c * edges[e].information).trace();
+    if (strength > 0.0) scales.push_back(6.0 / strength);
+  }
+  if (scales.empty()) return weights;
+  std::nth_element(scales.begin(), scales.begin() + scales.size() / 2, scales.end());
+  const double scale = scales[scales.size() / 2];
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    if (inverse[e]) {
+      weights.information[e] = *inverse[e];
+      ++weights.covariance_weighted;
+    } else {
+      weights.information[e] *= scale;
+    }
+  }
+  return weights;
+}
+
+int Solve(PoseBlocks& blocks, const std::vector<PoseGraphEdge>& edges,
+          const std::vector<Matrix6>& information, const std::vector<bool>& use,
           const PoseGraphOptions& options, bool robust) {
   ceres::Problem problem;
   for (std::size_t i = 0; i < blocks.q.size(); ++i) {
@@ -80,7 +120,7 @@ int Solve(PoseBlocks& blocks, const std::vector<PoseGraphEdge>& edges, const std
     const Matrix4 z_inverse = edge.measurement.inverse();
     auto* cost = new ceres::AutoDiffCostFunction<EdgeCost, 6, 4, 3, 4, 3>(new EdgeCost{
         Eigen::Quaterniond(Eigen::Matrix3d(z_inverse.topLeftCorner<3, 3>())).normalized(),
-        z_inverse.topRightCorner<3, 1>(), SqrtInformation(edge.information)});
+        z_inverse.topRightCorner<3, 1>(), SqrtInformation(information[e])});
     ceres::LossFunction* loss = robust ? new ceres::CauchyLoss(options.robust_scale_d) : nullptr;
     problem.AddResidualBlock(cost, loss, blocks.q[edge.from].coeffs().data(),
                              blocks.t[edge.from].data(), blocks.q[edge.to].coeffs().data(),
@@ -160,7 +200,8 @@ absl::StatusOr<PoseGraphResult> OptimisePoseGraph(const std::vector<Matrix4>& in
     use[e] = false;
     if (!IsConnected(n, edges, &use)) use[e] = true;
   }
-  result.iterations += Solve(blocks, edges, use, options, /*robust=*/true);
+  result.iterations += Solve(blocks, edges, WeighEdges(edges, use, false).information, use, options,
+                             /*robust=*/true);
   // Drop the edges that still disagree, worst first, while the graph stays connected.
   std::vector<Matrix4> robust_poses = blocks.Poses();
   std::vector<std::size_t> order(edges.size());
@@ -181,7 +222,11 @@ absl::StatusOr<PoseGraphResult> OptimisePoseGraph(const std::vector<Matrix4>& in
     }
   }
   // The final solve: plain least squares over the kept edges, from the robust solution.
-  if (dropped || !edges.empty()) result.iterations += Solve(blocks, edges, use, options, false);
+  if (dropped || !edges.empty()) {
+    const EdgeWeights weights = WeighEdges(edges, use, options.weigh_by_covariance);
+    result.covariance_weighted = weights.covariance_weighted;
+    result.iterations += Solve(blocks, edges, weights.information, use, options, false);
+  }
   result.poses = blocks.Poses();
   result.kept = use;
   for (const PoseGraphEdge& edge : edges) {

@@ -1,6 +1,7 @@
-// AlignScans: many scans into one frame. Pairwise registrations (any method; MLS-SICP by
-// default) give relative poses with information matrices, and a pose graph (pose_graph.h)
-// turns them into one pose per scan, dropping edges that disagree with the rest.
+// AlignScans: many scans into one frame. Pairwise registrations (any method; `auto` by default)
+// give relative poses with their pose covariances and overlap information matrices, and a pose
+// graph (pose_graph.h) turns them into one pose per scan: edges that disagree with the rest are
+// dropped (by the overlap's disagreement, units of d), the kept ones weighed by their covariance.
 #pragma once
 
 #include <functional>
@@ -87,6 +88,8 @@ struct AlignResult {
   std::vector<int> unverified_scans;
   double sampling_distance = 0.0;  // the unit d: the mean of the scans' sampling distances
   int graph_iterations = 0;
+  // Kept edges the final solve weighed by their pose covariance (PoseGraphOptions).
+  int covariance_weighted_edges = 0;
   double seconds = 0.0;
 };
 

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <optional>
 #include <vector>
 
 #include "absl/status/statusor.h"
@@ -21,6 +22,10 @@ struct PoseGraphEdge {
   int from = 0, to = 0;
   Matrix4 measurement = Matrix4::Identity();
   Matrix6 information = Matrix6::Identity();
+  // The measurement's covariance, in the twist's coordinates (a registration's pose_covariance:
+  // registration/verification.h), when it has one. The final solve weighs the kept edges by its
+  // inverse (PoseGraphOptions::weigh_by_covariance); `information` still measures disagreement.
+  std::optional<Matrix6> covariance = std::nullopt;
   // An untrusted edge (e.g. a registration that did not verify) is left out from the start,
   // unless the graph would fall apart without it.
   bool trusted = true;
@@ -31,6 +36,12 @@ struct PoseGraphOptions {
   double robust_scale_d = 1.0;  // Cauchy loss scale: disagreement (units of d) where it bends
   double reject_above_d = 2.0;  // after the robust solve, edges disagreeing more are dropped
   int max_iterations = 100;
+  // The final solve, over the kept edges only, weighs each by its covariance's inverse: edges
+  // certain in a direction (two façades) pull the poses more along it than edges the data barely
+  // fix there (a bare road). A kept edge without a covariance gets its `information` scaled by the
+  // kept edges' median ratio of the two (EdgeWeights). Off, or with no kept edge carrying a
+  // covariance: `information`, as the robust solve.
+  bool weigh_by_covariance = true;
 };
 
 struct PoseGraphResult {
@@ -39,6 +50,8 @@ struct PoseGraphResult {
   // at the result, and whether it was kept for the final solve.
   std::vector<double> residual_before_d, residual_after_d;
   std::vector<bool> kept;
+  // Kept edges the final solve weighed by their covariance (0: none, by `information`).
+  int covariance_weighted = 0;
   int iterations = 0;  // of both solves
 };
 
