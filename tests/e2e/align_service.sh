@@ -54,6 +54,8 @@ for s in uploaded["scans"]:
     assert s["rotation_error_deg"] < 0.5 and s["translation_error_d"] < 2.0, s
 for other in (uploaded, cached):
     assert len(other["scans"]) == 3 and len(other["edges"]) == 3, other
+    # The graph weighed the same edges by their covariance (AlignScansResult field 13).
+    assert other["covariance_weighted_edges"] == local["covariance_weighted_edges"] > 0, other
     for a, b in zip(local["scans"], other["scans"]):
         assert max(abs(x - y) for x, y in zip(a["pose"], b["pose"])) < 1e-6, (a, b)
     for a, b in zip(local["edges"], other["edges"]):
