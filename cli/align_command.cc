@@ -186,11 +186,18 @@ int RunAlign(const AlignArgs& args) {
       translation_error.push_back(error.translation_d);
     }
   }
-  std::printf("\nposes (scan -> frame of %s, row-major):\n", Name(args.scans[args.anchor]).c_str());
+  std::printf(
+      "\nposes (scan -> frame of %s, row-major; uncertainty: 1 sigma of the least certain rotation "
+      "and of the scan origin's least certain translation):\n",
+      Name(args.scans[args.anchor]).c_str());
   for (std::size_t i = 0; i < result->poses.size(); ++i) {
     std::printf("  %-24s", Name(args.scans[i]).c_str());
     for (int k = 0; k < 12; ++k) std::printf(" %10.6f", result->poses[i](k / 4, k % 4));
     std::printf("   drift removed %.3f d", result->chain_deviation_d[i]);
+    if (i < result->pose_covariances.size() && result->pose_covariances[i]) {
+      const PoseSigmas sigmas = SigmasOf(*result->pose_covariances[i]);
+      std::printf("   uncertainty %.3f deg %.3g", sigmas.rotation_deg, sigmas.translation);
+    }
     if (!truth.empty()) {
       std::printf("   vs gt %.3f deg %.3f d", rotation_error[i], translation_error[i]);
     }
@@ -235,7 +242,16 @@ int RunAlign(const AlignArgs& args) {
       nlohmann::json scan = {{"scan", args.scans[i]},
                              {"pose", Row(result->poses[i])},
                              {"chained_pose", Row(result->chained_poses[i])},
-                             {"drift_removed_d", result->chain_deviation_d[i]}};
+                             {"drift_removed_d", result->chain_deviation_d[i]},
+                             {"pose_covariance", nullptr}};
+      if (i < result->pose_covariances.size() && result->pose_covariances[i]) {
+        const Matrix6& c = *result->pose_covariances[i];
+        scan["pose_covariance"] = nlohmann::json::array();
+        for (int k = 0; k < 36; ++k) scan["pose_covariance"].push_back(c(k / 6, k % 6));
+        const PoseSigmas sigmas = SigmasOf(c);
+        scan["pose_rotation_sigma_deg"] = sigmas.rotation_deg;
+        scan["pose_translation_sigma"] = sigmas.translation;
+      }
       if (!truth.empty()) {
         scan["rotation_error_deg"] = rotation_error[i];
         scan["translation_error_d"] = translation_error[i];

@@ -102,6 +102,11 @@ void ToProto(const AlignResult& r, v1::AlignScansResult* out) {
   out->set_sampling_distance(r.sampling_distance);
   out->set_graph_iterations(r.graph_iterations);
   out->set_covariance_weighted_edges(r.covariance_weighted_edges);
+  for (const std::optional<Matrix6>& c : r.pose_covariances) {
+    v1::ScanPoseCovariance* values = out->add_pose_covariances();
+    if (!c) continue;
+    for (int k = 0; k < 36; ++k) values->add_values((*c)(k / 6, k % 6));
+  }
   out->set_seconds(r.seconds);
   out->set_loop_closure_exceeded(r.loop_closure_exceeded);
   for (int i : r.unverified_scans) out->add_unverified_scans(i);
@@ -118,6 +123,12 @@ AlignResult FromProto(const v1::AlignScansResult& p) {
   r.sampling_distance = p.sampling_distance();
   r.graph_iterations = p.graph_iterations();
   r.covariance_weighted_edges = p.covariance_weighted_edges();
+  for (const v1::ScanPoseCovariance& values : p.pose_covariances()) {
+    std::optional<Matrix6>& c = r.pose_covariances.emplace_back();
+    if (values.values_size() != 36) continue;
+    c.emplace();
+    for (int k = 0; k < 36; ++k) (*c)(k / 6, k % 6) = values.values(k);
+  }
   r.seconds = p.seconds();
   r.loop_closure_exceeded = p.loop_closure_exceeded();
   r.unverified_scans.assign(p.unverified_scans().begin(), p.unverified_scans().end());

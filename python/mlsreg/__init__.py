@@ -251,12 +251,15 @@ def evaluate(result: Result, gt, source=None, success_threshold_d: float = 5.0) 
 
 @dataclasses.dataclass
 class AlignResult:
-    """Many scans in one frame: ``poses[i]`` maps scan i into the anchor's frame (4x4);
+    """Many scans in one frame: ``poses[i]`` maps scan i into the anchor's frame (4x4), with
+    ``pose_covariances[i]`` its 6x6 covariance (rotation vector, translation of the scan's
+    origin, in the anchor's frame) or None (the anchor; none computed);
     ``edges`` are the pairwise registrations (dicts: from, to, relative, overlap,
     residual_before_d, residual_after_d, trusted, kept, ...)."""
 
     poses: list
     chained_poses: list
+    pose_covariances: list
     edges: list
     chain_deviation_d: list
     loop_closure_rotation_deg: float

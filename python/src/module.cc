@@ -259,8 +259,13 @@ py::dict AlignResultToPython(const AlignResult& r) {
   for (const Matrix4& p : r.poses) out_poses.append(Matrix4(p));
   for (const Matrix4& p : r.chained_poses) chained.append(Matrix4(p));
   for (const AlignEdge& e : r.edges) edges.append(AlignEdgeToPython(e));
+  py::list covariances;
+  for (const std::optional<Matrix6>& c : r.pose_covariances) {
+    covariances.append(c ? py::cast(Matrix6(*c)) : py::none());
+  }
   return py::dict(py::arg("poses") = out_poses, py::arg("chained_poses") = chained,
-                  py::arg("edges") = edges, py::arg("chain_deviation_d") = r.chain_deviation_d,
+                  py::arg("pose_covariances") = covariances, py::arg("edges") = edges,
+                  py::arg("chain_deviation_d") = r.chain_deviation_d,
                   py::arg("loop_closure_rotation_deg") = r.loop_closure_rotation_deg,
                   py::arg("loop_closure_error_d") = r.loop_closure_error_d,
                   py::arg("loop_closure_exceeded") = r.loop_closure_exceeded,

@@ -99,7 +99,13 @@ assert all(e["trusted"] == e["verification"]["verified"] for e in j["edges"]), j
 # The final solve weighs every kept edge that has a pose covariance by it (all six do here).
 with_covariance = sum(e["kept"] and e["verification"]["pose_covariance"] is not None for e in j["edges"])
 assert j["covariance_weighted_edges"] == with_covariance == 6, (j["covariance_weighted_edges"], with_covariance)
+# And every scan but the anchor gets its pose's covariance from that solve.
+assert j["scans"][0]["pose_covariance"] is None
+for s in j["scans"][1:]:
+    assert len(s["pose_covariance"]) == 36 and 0 < s["pose_rotation_sigma_deg"] < 1.0, s
 PY
+[ "$(grep -c "   uncertainty [0-9.]* deg" "$work/six.txt")" -eq 5 ] \
+  || fail "pose uncertainties: $(grep -A7 '^poses' "$work/six.txt")"
 grep -q "the final solve weighed 6 kept edges by their pose covariance" "$work/six.txt" \
   || fail "covariance weights: $(grep 'aligned in' "$work/six.txt")"
 "$MLSREG" align --scans "${six[@]}" --gt "$B/bun.conf" --threads 2 --method mls-sicp \

@@ -44,6 +44,15 @@ def test_the_bunny_ring_is_aligned_to_its_ground_truth(scans, truth):
         assert rotation_deg(pose, expected) < 0.5
         assert np.linalg.norm(pose[:3, 3] - expected[:3, 3]) < 2 * d
     assert all(e["kept"] for e in result.edges)
+    # Each pose but the anchor's carries its covariance from the covariance-weighted graph:
+    # symmetric, positive definite, and well under a degree and a d (the ring fixes every view).
+    assert result.covariance_weighted_edges == 3
+    assert result.pose_covariances[0] is None
+    for c in result.pose_covariances[1:]:
+        assert c.shape == (6, 6) and np.allclose(c, c.T)
+        assert np.linalg.eigvalsh(c).min() > 0
+        assert np.degrees(np.sqrt(np.linalg.eigvalsh(c[:3, :3]).max())) < 1.0
+        assert np.sqrt(np.linalg.eigvalsh(c[3:, 3:]).max()) < d
 
 
 def test_merge_scans_as_is_and_resampled_onto_the_joint_surface(scans, truth):
@@ -122,6 +131,9 @@ def test_a_served_alignment_equals_the_local_one(server, scans, truth):
     assert sorted(edges) == [(0, 1), (1, 2), (2, 0)]
     for a, b in zip(local.poses, served.poses):
         assert np.abs(a - b).max() < 1e-6
+    assert served.pose_covariances[0] is None
+    for a, b in zip(local.pose_covariances[1:], served.pose_covariances[1:]):
+        assert np.abs(a - b).max() <= 1e-6 * np.abs(a).max()
     assert [e["kept"] for e in served.edges] == [e["kept"] for e in local.edges]
     with pytest.raises(mlsreg.Error) as raised:
         # Cancelled after the first of three edges (each takes a few hundred ms on the server).

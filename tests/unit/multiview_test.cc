@@ -149,6 +149,64 @@ TEST(PoseGraphTest, TheFinalSolveTrustsEachEdgeAlongTheDirectionsItsCovarianceFi
   EXPECT_GT(TranslationError(unweighed->poses[1], triangle.truth[1]), 0.1);
 }
 
+// Exact edges, each with rotation variance 1e-6 rad^2 and translation variance 1e-2 per axis: the
+// poses' covariances follow the graph's paths (a lever of 1 adds only 1e-6 to a translation).
+std::vector<PoseGraphEdge> EdgesWithCovariance(const std::vector<Matrix4>& truth,
+                                               const std::vector<std::pair<int, int>>& pairs) {
+  Matrix6 covariance = Matrix6::Identity() * 1e-2;
+  covariance.topLeftCorner<3, 3>() = Eigen::Matrix3d::Identity() * 1e-6;
+  std::vector<PoseGraphEdge> edges;
+  for (const auto& [i, j] : pairs) {
+    edges.push_back({.from = i,
+                     .to = j,
+                     .measurement = truth[i].inverse() * truth[j],
+                     .covariance = covariance});
+  }
+  return edges;
+}
+
+TEST(PoseGraphTest, PoseCovariancesAddAlongAChainAndCombineOverParallelPaths) {
+  const std::vector<Matrix4> truth{Pose(0, Vec3::Zero()), Pose(0, Vec3(1, 0, 0)),
+                                   Pose(0, Vec3(2, 0, 0))};
+  const auto expect_near = [](const Matrix6& actual, double rotation, double translation,
+                              const char* what) {
+    Matrix6 expected = Matrix6::Identity() * translation;
+    expected.topLeftCorner<3, 3>() = Eigen::Matrix3d::Identity() * rotation;
+    for (int r = 0; r < 6; ++r) {
+      for (int c = 0; c < 6; ++c) {
+        const double scale = r < 3 && c < 3 ? rotation : translation;
+        EXPECT_NEAR(actual(r, c), expected(r, c), 0.02 * scale)
+            << what << " (" << r << ", " << c << ")";
+      }
+    }
+  };
+  // A chain 0 - 1 - 2: pose 1 is as uncertain as one edge, pose 2 as two.
+  auto chain = OptimisePoseGraph(truth, EdgesWithCovariance(truth, {{0, 1}, {1, 2}}));
+  ASSERT_TRUE(chain.ok()) << chain.status();
+  ASSERT_EQ(chain->pose_covariances.size(), 3u);
+  EXPECT_FALSE(chain->pose_covariances[0].has_value());  // the anchor
+  ASSERT_TRUE(chain->pose_covariances[1] && chain->pose_covariances[2]);
+  expect_near(*chain->pose_covariances[1], 1e-6, 1e-2, "chain, pose 1");
+  expect_near(*chain->pose_covariances[2], 2e-6, 2e-2, "chain, pose 2");
+  EXPECT_NEAR(SigmasOf(*chain->pose_covariances[2]).translation, std::sqrt(2e-2), 1e-3);
+  EXPECT_NEAR(SigmasOf(*chain->pose_covariances[2]).rotation_deg, std::sqrt(2e-6) * 180 / kPi,
+              1e-3);
+
+  // A loop 0 - 1 - 2 - 0: pose 1 hears one edge directly and two through pose 2, so its variance
+  // is 1 * 2 / (1 + 2) of one edge's.
+  auto loop = OptimisePoseGraph(truth, EdgesWithCovariance(truth, {{0, 1}, {1, 2}, {2, 0}}));
+  ASSERT_TRUE(loop.ok()) << loop.status();
+  ASSERT_TRUE(loop->pose_covariances[1]);
+  expect_near(*loop->pose_covariances[1], 2e-6 / 3, 2e-2 / 3, "loop, pose 1");
+
+  // Weighed by information alone the final solve's covariance would be in units of d: none.
+  PoseGraphOptions options;
+  options.weigh_by_covariance = false;
+  auto unweighed = OptimisePoseGraph(truth, EdgesWithCovariance(truth, {{0, 1}, {1, 2}}), options);
+  ASSERT_TRUE(unweighed.ok());
+  for (const auto& c : unweighed->pose_covariances) EXPECT_FALSE(c.has_value());
+}
+
 TEST(PoseGraphTest, AnEdgeWithoutCovarianceIsWeighedLikeItsNeighboursInformation) {
   UncertainTriangle triangle;
   // Edge (1, 2) loses its covariance; its `information` (1 per unit twist) is rescaled by the

@@ -357,6 +357,7 @@ absl::StatusOr<AlignResult> AlignTargets(const std::vector<std::shared_ptr<const
   result.poses = solved->poses;
   result.graph_iterations = solved->iterations;
   result.covariance_weighted_edges = solved->covariance_weighted;
+  result.pose_covariances = solved->pose_covariances;
   for (std::size_t e = 0; e < result.edges.size(); ++e) {
     result.edges[e].residual_before_d = solved->residual_before_d[e];
     result.edges[e].residual_after_d = solved->residual_after_d[e];

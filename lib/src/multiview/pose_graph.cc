@@ -3,8 +3,10 @@
 #include <ceres/ceres.h>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cmath>
 #include <numeric>
 
 #include "absl/strings/str_cat.h"
@@ -106,10 +108,11 @@ EdgeWeights WeighEdges(const std::vector<PoseGraphEdge>& edges, const std::vecto
   return weights;
 }
 
-int Solve(PoseBlocks& blocks, const std::vector<PoseGraphEdge>& edges,
-          const std::vector<Matrix6>& information, const std::vector<bool>& use,
-          const PoseGraphOptions& options, bool robust) {
-  ceres::Problem problem;
+// The graph as a Ceres problem over `blocks`: one residual per edge in `use`, weighed by
+// `information`, under a Cauchy loss when `robust`; the anchor's pose fixed.
+void AddEdges(ceres::Problem& problem, PoseBlocks& blocks, const std::vector<PoseGraphEdge>& edges,
+              const std::vector<Matrix6>& information, const std::vector<bool>& use,
+              const PoseGraphOptions& options, bool robust) {
   for (std::size_t i = 0; i < blocks.q.size(); ++i) {
     problem.AddParameterBlock(blocks.q[i].coeffs().data(), 4, new ceres::EigenQuaternionManifold);
     problem.AddParameterBlock(blocks.t[i].data(), 3);
@@ -128,6 +131,9 @@ int Solve(PoseBlocks& blocks, const std::vector<PoseGraphEdge>& edges,
   }
   problem.SetParameterBlockConstant(blocks.q[options.anchor].coeffs().data());
   problem.SetParameterBlockConstant(blocks.t[options.anchor].data());
+}
+
+int Solve(ceres::Problem& problem, const PoseGraphOptions& options) {
   ceres::Solver::Options solver;
   solver.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
   solver.max_num_iterations = options.max_iterations;
@@ -138,7 +144,61 @@ int Solve(PoseBlocks& blocks, const std::vector<PoseGraphEdge>& edges,
   return static_cast<int>(summary.iterations.size());
 }
 
+int Solve(PoseBlocks& blocks, const std::vector<PoseGraphEdge>& edges,
+          const std::vector<Matrix6>& information, const std::vector<bool>& use,
+          const PoseGraphOptions& options, bool robust) {
+  ceres::Problem problem;
+  AddEdges(problem, blocks, edges, information, use, options, robust);
+  return Solve(problem, options);
+}
+
+// Per pose, at the solution of `problem` (non-robust, its weights covariances' inverses): the
+// covariance of (rotation vector, translation of the pose's origin) in the anchor's frame. Ceres'
+// quaternion tangent delta turns by 2 |delta|. Empty for the anchor, and for every pose when the
+// problem's Jacobian is rank deficient.
+std::vector<std::optional<Matrix6>> PoseCovariances(ceres::Problem& problem, PoseBlocks& blocks,
+                                                    int anchor) {
+  const int n = static_cast<int>(blocks.q.size());
+  std::vector<std::optional<Matrix6>> out(static_cast<std::size_t>(n));
+  std::vector<std::pair<const double*, const double*>> pairs;
+  for (int i = 0; i < n; ++i) {
+    if (i == anchor) continue;
+    const double* q = blocks.q[i].coeffs().data();
+    const double* t = blocks.t[i].data();
+    pairs.insert(pairs.end(), {{q, q}, {q, t}, {t, t}});
+  }
+  ceres::Covariance::Options options;
+  options.num_threads = 1;
+  ceres::Covariance covariance(options);
+  if (pairs.empty() || !covariance.Compute(pairs, &problem)) return out;
+  using Block = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
+  for (int i = 0; i < n; ++i) {
+    if (i == anchor) continue;
+    const double* q = blocks.q[i].coeffs().data();
+    const double* t = blocks.t[i].data();
+    Block qq, qt, tt;
+    if (!covariance.GetCovarianceBlockInTangentSpace(q, q, qq.data()) ||
+        !covariance.GetCovarianceBlockInTangentSpace(q, t, qt.data()) ||
+        !covariance.GetCovarianceBlockInTangentSpace(t, t, tt.data())) {
+      continue;
+    }
+    Matrix6 c;
+    c << 4.0 * qq, 2.0 * qt, 2.0 * qt.transpose(), tt;
+    out[static_cast<std::size_t>(i)] = 0.5 * (c + c.transpose());
+  }
+  return out;
+}
+
 }  // namespace
+
+PoseSigmas SigmasOf(const Matrix6& covariance) {
+  const auto largest = [](const Eigen::Matrix3d& block) {
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(block, Eigen::EigenvaluesOnly);
+    return std::sqrt(std::max(solver.eigenvalues().maxCoeff(), 0.0));
+  };
+  return {largest(covariance.topLeftCorner<3, 3>()) * 180.0 / M_PI,
+          largest(covariance.bottomRightCorner<3, 3>())};
+}
 
 double EdgeResidual(const PoseGraphEdge& edge, const std::vector<Matrix4>& poses) {
   const PoseBlocks blocks(poses);
@@ -222,10 +282,18 @@ absl::StatusOr<PoseGraphResult> OptimisePoseGraph(const std::vector<Matrix4>& in
     }
   }
   // The final solve: plain least squares over the kept edges, from the robust solution.
+  result.pose_covariances.assign(static_cast<std::size_t>(n), std::nullopt);
   if (dropped || !edges.empty()) {
     const EdgeWeights weights = WeighEdges(edges, use, options.weigh_by_covariance);
     result.covariance_weighted = weights.covariance_weighted;
-    result.iterations += Solve(blocks, edges, weights.information, use, options, false);
+    ceres::Problem problem;
+    AddEdges(problem, blocks, edges, weights.information, use, options, /*robust=*/false);
+    result.iterations += Solve(problem, options);
+    // Weighed by covariances, the final solve's own covariance is the poses' (in the edges'
+    // units); weighed by information alone it would be in units of d, and is not reported.
+    if (weights.covariance_weighted > 0) {
+      result.pose_covariances = PoseCovariances(problem, blocks, options.anchor);
+    }
   }
   result.poses = blocks.Poses();
   result.kept = use;

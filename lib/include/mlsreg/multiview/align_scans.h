@@ -72,6 +72,10 @@ struct AlignEdge {
 struct AlignResult {
   std::vector<Matrix4> poses;          // each scan into the anchor's frame
   std::vector<Matrix4> chained_poses;  // composed along a spanning tree of the edges, unoptimised
+  // Per scan: its pose's covariance from the covariance-weighted final solve
+  // (PoseGraphResult::pose_covariances): rotation vector, then translation of the scan's origin,
+  // in the anchor's frame. Empty for the anchor and when none could be computed.
+  std::vector<std::optional<Matrix6>> pose_covariances;
   std::vector<AlignEdge> edges;
   // Per scan: RMS distance between its points under the chained pose and the optimised one
   // (units of d): the drift the graph removed.

@@ -52,8 +52,21 @@ struct PoseGraphResult {
   std::vector<bool> kept;
   // Kept edges the final solve weighed by their covariance (0: none, by `information`).
   int covariance_weighted = 0;
+  // Per pose, when covariance_weighted > 0: the covariance of the small motion (rotation vector
+  // in radians, then translation of the pose's origin) that would take it to the truth, in the
+  // anchor's frame: R_truth = exp(w) R, t_truth = t + v. As calibrated as the edges'
+  // covariances. Empty for the anchor, and when the kept edges leave some direction of some pose
+  // unconstrained.
+  std::vector<std::optional<Matrix6>> pose_covariances;
   int iterations = 0;  // of both solves
 };
+
+// The 1-sigma extent of a pose covariance (rotation vector, translation) along its least certain
+// rotation (degrees) and translation (the clouds' units).
+struct PoseSigmas {
+  double rotation_deg = 0.0, translation = 0.0;
+};
+PoseSigmas SigmasOf(const Matrix6& covariance);
 
 // The disagreement of an edge at the given poses (units of d).
 double EdgeResidual(const PoseGraphEdge& edge, const std::vector<Matrix4>& poses);
