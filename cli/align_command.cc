@@ -187,8 +187,9 @@ int RunAlign(const AlignArgs& args) {
     }
   }
   std::printf(
-      "\nposes (scan -> frame of %s, row-major; uncertainty: 1 sigma of the least certain rotation "
-      "and of the scan origin's least certain translation):\n",
+      "\nposes (scan -> frame of %s, row-major; graph sigma: 1 sigma of the least certain rotation "
+      "and of the scan origin's least certain translation as the graph propagates its edges' "
+      "covariances, taken as independent: a lower bound on the error)\n",
       Name(args.scans[args.anchor]).c_str());
   for (std::size_t i = 0; i < result->poses.size(); ++i) {
     std::printf("  %-24s", Name(args.scans[i]).c_str());
@@ -196,7 +197,7 @@ int RunAlign(const AlignArgs& args) {
     std::printf("   drift removed %.3f d", result->chain_deviation_d[i]);
     if (i < result->pose_covariances.size() && result->pose_covariances[i]) {
       const PoseSigmas sigmas = SigmasOf(*result->pose_covariances[i]);
-      std::printf("   uncertainty %.3f deg %.3g", sigmas.rotation_deg, sigmas.translation);
+      std::printf("   graph sigma %.3f deg %.3g", sigmas.rotation_deg, sigmas.translation);
     }
     if (!truth.empty()) {
       std::printf("   vs gt %.3f deg %.3f d", rotation_error[i], translation_error[i]);

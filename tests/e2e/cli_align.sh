@@ -104,7 +104,7 @@ assert j["scans"][0]["pose_covariance"] is None
 for s in j["scans"][1:]:
     assert len(s["pose_covariance"]) == 36 and 0 < s["pose_rotation_sigma_deg"] < 1.0, s
 PY
-[ "$(grep -c "   uncertainty [0-9.]* deg" "$work/six.txt")" -eq 5 ] \
+[ "$(grep -c "   graph sigma [0-9.]* deg" "$work/six.txt")" -eq 5 ] \
   || fail "pose uncertainties: $(grep -A7 '^poses' "$work/six.txt")"
 grep -q "the final solve weighed 6 kept edges by their pose covariance" "$work/six.txt" \
   || fail "covariance weights: $(grep 'aligned in' "$work/six.txt")"
