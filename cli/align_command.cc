@@ -246,10 +246,8 @@ int RunAlign(const AlignArgs& args) {
                              {"drift_removed_d", result->chain_deviation_d[i]},
                              {"pose_covariance", nullptr}};
       if (i < result->pose_covariances.size() && result->pose_covariances[i]) {
-        const Matrix6& c = *result->pose_covariances[i];
-        scan["pose_covariance"] = nlohmann::json::array();
-        for (int k = 0; k < 36; ++k) scan["pose_covariance"].push_back(c(k / 6, k % 6));
-        const PoseSigmas sigmas = SigmasOf(c);
+        scan["pose_covariance"] = PoseCovarianceJson(result->pose_covariances[i]);
+        const PoseSigmas sigmas = SigmasOf(*result->pose_covariances[i]);
         scan["pose_rotation_sigma_deg"] = sigmas.rotation_deg;
         scan["pose_translation_sigma"] = sigmas.translation;
       }

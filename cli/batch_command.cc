@@ -102,7 +102,7 @@ std::string JsonRow(const JobOutcome& o) {
   if (const std::optional<VerificationScore>& v = o.verification) {
     j["verdict"] = std::string(VerdictName(v->verdict));
     if (v->pose_covariance) {
-      j["pose_covariance"] = PoseCovarianceJson(*v);
+      j["pose_covariance"] = PoseCovarianceJson(v->pose_covariance);
       j["pose_rotation_sigma_deg"] = v->pose_rotation_sigma_deg;
       j["pose_translation_sigma"] = v->pose_translation_sigma;
     }

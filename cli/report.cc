@@ -232,13 +232,13 @@ nlohmann::json IterationJson(const IterationReport& r) {
           {"transform", MatrixJson(r.transform)}};
 }
 
-nlohmann::json PoseCovarianceJson(const VerificationScore& v) {
-  if (!v.pose_covariance) return nullptr;
-  nlohmann::json covariance = nlohmann::json::array();
+nlohmann::json PoseCovarianceJson(const std::optional<Eigen::Matrix<double, 6, 6>>& covariance) {
+  if (!covariance) return nullptr;
+  nlohmann::json values = nlohmann::json::array();
   for (int row = 0; row < 6; ++row) {
-    for (int col = 0; col < 6; ++col) covariance.push_back((*v.pose_covariance)(row, col));
+    for (int col = 0; col < 6; ++col) values.push_back((*covariance)(row, col));
   }
-  return covariance;
+  return values;
 }
 
 nlohmann::json VerificationJson(const VerificationScore& v) {
@@ -274,7 +274,7 @@ nlohmann::json VerificationJson(const VerificationScore& v) {
           {"worst_direction_error", v.worst_direction_error},
           {"normal_angle_median_deg", v.normal_angle_median_deg},
           {"edge_samples", v.edge_samples},
-          {"pose_covariance", PoseCovarianceJson(v)},
+          {"pose_covariance", PoseCovarianceJson(v.pose_covariance)},
           {"pose_rotation_sigma_deg", v.pose_rotation_sigma_deg},
           {"pose_translation_sigma", v.pose_translation_sigma}};
 }

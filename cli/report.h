@@ -32,8 +32,8 @@ std::string FormatRival(const AutoCandidate& rival, const VerificationScore& sco
                         const Matrix4& result);
 nlohmann::json RivalJson(const AutoCandidate& rival);
 nlohmann::json VerificationJson(const VerificationScore& score);
-// The score's pose covariance, 36 row-major values, or null when it has none.
-nlohmann::json PoseCovarianceJson(const VerificationScore& score);
+// A pose covariance (a verification's, a scan's in `align`), 36 row-major values, or null.
+nlohmann::json PoseCovarianceJson(const std::optional<Eigen::Matrix<double, 6, 6>>& covariance);
 
 // Progress of many jobs on stderr: a bar redrawn in place on a terminal, plain lines otherwise.
 class ProgressPrinter {
