@@ -337,6 +337,16 @@ void BM_TargetBuildThreads(benchmark::State& state) {
 }
 BENCHMARK(BM_TargetBuildThreads)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
+// The k-d tree over the target's points with 1 or 2 threads (argument): nanoflann's tree, its
+// subtrees built at once (the same tree for any count).
+void BM_KdTreeBuildThreads(benchmark::State& state) {
+  const std::vector<Vec3>& points = Pair().target->cloud().points;
+  const int threads = static_cast<int>(state.range(0));
+  for (auto _ : state) benchmark::DoNotOptimize(KdTree(points, threads));
+  state.SetItemsProcessed(state.iterations() * points.size());
+}
+BENCHMARK(BM_KdTreeBuildThreads)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 // Scene scale: the first KITTI 00 pair of ../shared/data/real (two 124k-point Velodyne scans,
 // 3.6 m apart), one thread, defaults, as `mlsreg register` runs it after reading the files.
 // Argument 0: the target's build alone; 1: the build and method auto from an odometry-like prior

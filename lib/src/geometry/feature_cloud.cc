@@ -99,7 +99,7 @@ std::optional<FeatureCloud> SampleOrientedPoints(
 bool ComputeFeatures(FeatureCloud& cloud, const StopCheck& should_stop, int threads) {
   cloud.features.clear();
   if (cloud.points.empty()) return !(should_stop && should_stop());
-  const KdTree sample_tree(cloud.points);
+  const KdTree sample_tree(cloud.points, threads);
   cloud.features = ComputeFpfh(cloud.points, cloud.normals, sample_tree, cloud.scale.feature_radius,
                                should_stop, threads);
   return cloud.features.size() == cloud.points.size();

@@ -57,7 +57,7 @@ absl::StatusOr<MlsPatches> MlsPatches::Build(const std::vector<Vec3>& points, co
   patches.patches_.resize(count);
   patches.states_ = std::make_unique<std::atomic<std::uint8_t>[]>(count);
   for (std::size_t i = 0; i < count; ++i) patches.states_[i].store(kUnfitted);
-  patches.anchor_tree_ = std::make_unique<KdTree>(patches.anchors_);
+  patches.anchor_tree_ = std::make_unique<KdTree>(patches.anchors_, threads);
   if (fitting == PatchFitting::kOnFirstUse) return patches;
   if (should_stop && should_stop()) return absl::CancelledError("MLS patch build cancelled");
 

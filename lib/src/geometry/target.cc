@@ -58,7 +58,7 @@ absl::StatusOr<std::shared_ptr<Target>> Target::BuildMutable(PointCloud cloud,
   target->cloud_ = std::move(cloud);
   target->cloud_.colors = {};  // never used by registration: not held
   target->options_ = options;
-  target->tree_ = std::make_unique<KdTree>(target->cloud_.points);
+  target->tree_ = std::make_unique<KdTree>(target->cloud_.points, options.threads);
   if (should_stop && should_stop()) return cancelled();
   // One nearest-neighbour pass gives d (the mean spacing) and the spacing percentiles.
   target->scales_ = MeasureScales(target->cloud_.points, *target->tree_, target->cloud_.viewpoint,

@@ -12,8 +12,7 @@ namespace mlsreg {
 std::size_t VoxelCloud::MemoryBytes() const {
   return points.capacity() * sizeof(Vec3) + normals.capacity() * sizeof(Vec3) + valid.capacity() +
          planarity.capacity() * sizeof(float) + spread.capacity() * sizeof(float) +
-         counts.capacity() * sizeof(std::uint32_t) +
-         (tree ? tree->MemoryBytes() : 0);
+         counts.capacity() * sizeof(std::uint32_t) + (tree ? tree->MemoryBytes() : 0);
 }
 
 namespace {
@@ -72,7 +71,7 @@ VoxelCloud BuildVoxelCloud(const std::vector<Vec3>& points, double voxel,
   cloud.valid.assign(n, 0);
   cloud.planarity.assign(n, 0.0f);
   cloud.oriented = viewpoint.has_value();
-  cloud.tree = std::make_unique<KdTree>(cloud.points);
+  cloud.tree = std::make_unique<KdTree>(cloud.points, threads);
   ParallelFor(
       n, threads,
       [&](std::size_t begin, std::size_t end, int) {

@@ -58,7 +58,7 @@ class AutoRegistration {
     if (params_.finish) full_.mls.projection = MlsProjectionKind::kPatches;
     base_ = problem;
     if (!base_.source_tree) {
-      own_source_tree_.emplace(problem.source->points);
+      own_source_tree_.emplace(problem.source->points, problem.threads);
       base_.source_tree = &*own_source_tree_;
     }
     // Every refinement and the finish analyse the source at the same radius: each point once.

@@ -58,7 +58,7 @@ absl::StatusOr<RegistrationResult> internal::RunFastGlobalRegistration(
   // Preprocessing: features of both clouds.
   Clock::time_point phase = Clock::now();
   std::optional<KdTree> own_source_tree;
-  if (!problem.source_tree) own_source_tree.emplace(source.points);
+  if (!problem.source_tree) own_source_tree.emplace(source.points, problem.threads);
   const KdTree& source_tree = problem.source_tree ? *problem.source_tree : *own_source_tree;
   const double normal_radius = target.options().analysis_radius_d * d;
   const FeatureScale scale = FgrScale(p, d);

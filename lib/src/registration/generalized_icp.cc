@@ -261,7 +261,7 @@ absl::StatusOr<RegistrationResult> RunGicp(const RegistrationProblem& problem,
 
   const Clock::time_point phase = Clock::now();  // source covariances at the samples
   std::optional<KdTree> own_tree;
-  if (!problem.source_tree) own_tree.emplace(problem.source->points);
+  if (!problem.source_tree) own_tree.emplace(problem.source->points, problem.threads);
   const KdTree& source_tree = problem.source_tree ? *problem.source_tree : *own_tree;
   GicpStep step(*problem.target, *problem.source, source_tree, std::move(sampled.points),
                 options.gicp, max_distance, problem.threads);

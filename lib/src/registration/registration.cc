@@ -202,7 +202,7 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
   const bool auto_radius = reads_mls && !options.mls.radius_d;
   if (auto_radius || options.verify || options.method == Method::kAuto) {
     const internal::Clock::time_point phase = internal::Clock::now();
-    source_tree.emplace(source.points);
+    source_tree.emplace(source.points, execution.threads);
     const NoiseEstimate noise =
         EstimateNoise(source.points, *source_tree, target.sampling_distance(), {}, {},
                       callbacks.should_stop, execution.threads);

@@ -307,7 +307,7 @@ absl::StatusOr<RegistrationResult> RunSparseIcp(const RegistrationProblem& probl
                                      ? finder->analysis_radius()
                                      : target.options().analysis_radius_d * d;
   std::optional<KdTree> own_tree;
-  if (!problem.source_tree) own_tree.emplace(problem.source->points);
+  if (!problem.source_tree) own_tree.emplace(problem.source->points, problem.threads);
   const KdTree& source_tree = problem.source_tree ? *problem.source_tree : *own_tree;
   SurfaceProperties surface =
       problem.source_surface

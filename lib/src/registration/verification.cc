@@ -214,7 +214,7 @@ SharedResiduals MeasureSharedResiduals(std::span<const Pull> pulls, double radiu
     residuals.push_back(p.across + j.dot(step));
     gradients.push_back(j * residuals.back());
   }
-  const KdTree tree(positions);
+  const KdTree tree(positions, threads);
   constexpr int kNeighbours = 7;  // the sample itself and six others
   // Each sample's products with its neighbours in parallel, summed in sample order after: the
   // same value for any thread count.
@@ -680,7 +680,7 @@ std::optional<Vec3> SourceSensor(const Target& target, const PointCloud& source,
 }
 
 SourceMeasures MeasureSource(const Target& target, const PointCloud& source, int threads) {
-  const KdTree tree(source.points);
+  const KdTree tree(source.points, threads);
   return {
       EstimateNoise(source.points, tree, target.sampling_distance(), {}, {}, {}, threads).sigma_d,
       SourceSensor(target, source, tree, threads)};

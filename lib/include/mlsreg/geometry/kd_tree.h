@@ -30,7 +30,10 @@ inline constexpr std::size_t kMaxRadiusNeighbors = 4096;
 // must not be modified; moving the owning std::vector is fine (its buffer does not move).
 class KdTree {
  public:
-  explicit KdTree(const std::vector<Vec3>& points);
+  // Builds the tree on up to `threads` threads (the pool of ParallelFor). The tree is the same
+  // node for node for any thread count, so every query answers the same, in the same order: the
+  // top levels are split as nanoflann splits them, and the subtrees below are built at once.
+  explicit KdTree(const std::vector<Vec3>& points, int threads = 1);
   ~KdTree();
   KdTree(KdTree&&) noexcept;
   KdTree& operator=(KdTree&&) noexcept;
