@@ -165,7 +165,7 @@ std::vector<PoseGraphEdge> EdgesWithCovariance(const std::vector<Matrix4>& truth
   return edges;
 }
 
-TEST(PoseGraphTest, PoseCovariancesAddAlongAChainAndCombineOverParallelPaths) {
+TEST(PoseGraphTest, PoseCovariancesAddAlongAChainCombineOverParallelPathsAndCountSharedScans) {
   const std::vector<Matrix4> truth{Pose(0, Vec3::Zero()), Pose(0, Vec3(1, 0, 0)),
                                    Pose(0, Vec3(2, 0, 0))};
   const auto expect_near = [](const Matrix6& actual, double rotation, double translation,
@@ -180,8 +180,11 @@ TEST(PoseGraphTest, PoseCovariancesAddAlongAChainAndCombineOverParallelPaths) {
       }
     }
   };
+  // The solve's own covariance: the edges taken as independent.
+  PoseGraphOptions independent;
+  independent.shared_scan_noise = 0.0;
   // A chain 0 - 1 - 2: pose 1 is as uncertain as one edge, pose 2 as two.
-  auto chain = OptimisePoseGraph(truth, EdgesWithCovariance(truth, {{0, 1}, {1, 2}}));
+  auto chain = OptimisePoseGraph(truth, EdgesWithCovariance(truth, {{0, 1}, {1, 2}}), independent);
   ASSERT_TRUE(chain.ok()) << chain.status();
   ASSERT_EQ(chain->pose_covariances.size(), 3u);
   EXPECT_FALSE(chain->pose_covariances[0].has_value());  // the anchor
@@ -194,10 +197,29 @@ TEST(PoseGraphTest, PoseCovariancesAddAlongAChainAndCombineOverParallelPaths) {
 
   // A loop 0 - 1 - 2 - 0: pose 1 hears one edge directly and two through pose 2, so its variance
   // is 1 * 2 / (1 + 2) of one edge's.
-  auto loop = OptimisePoseGraph(truth, EdgesWithCovariance(truth, {{0, 1}, {1, 2}, {2, 0}}));
+  auto loop =
+      OptimisePoseGraph(truth, EdgesWithCovariance(truth, {{0, 1}, {1, 2}, {2, 0}}), independent);
   ASSERT_TRUE(loop.ok()) << loop.status();
   ASSERT_TRUE(loop->pose_covariances[1]);
   expect_near(*loop->pose_covariances[1], 2e-6 / 3, 2e-2 / 3, "loop, pose 1");
+
+  // By default each edge counts the noise it shares with the edges sharing its scans: in the
+  // chain both edges share scan 1 with one other (inflation 1 + 1/4), in the loop every edge
+  // shares each of its scans with one other (1 + 2/4). The poses are the same.
+  auto shared_chain = OptimisePoseGraph(truth, EdgesWithCovariance(truth, {{0, 1}, {1, 2}}));
+  ASSERT_TRUE(shared_chain.ok() && shared_chain->pose_covariances[2]);
+  expect_near(*shared_chain->pose_covariances[2], 1.25 * 2e-6, 1.25 * 2e-2, "shared chain, pose 2");
+  EXPECT_TRUE(shared_chain->poses == chain->poses);
+  auto shared_loop = OptimisePoseGraph(truth, EdgesWithCovariance(truth, {{0, 1}, {1, 2}, {2, 0}}));
+  ASSERT_TRUE(shared_loop.ok() && shared_loop->pose_covariances[1]);
+  expect_near(*shared_loop->pose_covariances[1], 1.5 * 2e-6 / 3, 1.5 * 2e-2 / 3,
+              "shared loop, pose 1");
+  PoseGraphOptions beyond;
+  beyond.shared_scan_noise = 1.5;
+  const auto refused = OptimisePoseGraph(truth, EdgesWithCovariance(truth, {{0, 1}}), beyond);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(std::string(refused.status().message()).find("shared_scan_noise"), std::string::npos)
+      << refused.status();
 
   // Weighed by information alone the final solve's covariance would be in units of d: none.
   PoseGraphOptions options;

@@ -189,6 +189,32 @@ std::vector<std::optional<Matrix6>> PoseCovariances(ceres::Problem& problem, Pos
   return out;
 }
 
+// The poses' covariances at the final solution with each kept edge's information divided by
+// its share of noise with the others, 1 + shared_scan_noise * (kept edges sharing one of its
+// scans): the variance inflation of measurements that share part of their noise, which the
+// solve, taking them as independent, counts once per edge (PoseGraphOptions). The poses are
+// not solved again.
+std::vector<std::optional<Matrix6>> SharedScanCovariances(PoseBlocks& blocks,
+                                                          const std::vector<PoseGraphEdge>& edges,
+                                                          std::vector<Matrix6> information,
+                                                          const std::vector<bool>& use,
+                                                          const PoseGraphOptions& options) {
+  std::vector<int> degree(blocks.q.size(), 0);
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    if (!use[e]) continue;
+    ++degree[edges[e].from];
+    ++degree[edges[e].to];
+  }
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    if (!use[e]) continue;
+    const int sharing = degree[edges[e].from] + degree[edges[e].to] - 2;
+    information[e] /= 1.0 + options.shared_scan_noise * sharing;
+  }
+  ceres::Problem problem;
+  AddEdges(problem, blocks, edges, information, use, options, /*robust=*/false);
+  return PoseCovariances(problem, blocks, options.anchor);
+}
+
 }  // namespace
 
 PoseSigmas SigmasOf(const Matrix6& covariance) {
@@ -243,6 +269,10 @@ absl::StatusOr<PoseGraphResult> OptimisePoseGraph(const std::vector<Matrix4>& in
     return absl::InvalidArgumentError(
         absl::StrCat("anchor: ", options.anchor, " is not a pose index (0 .. ", n - 1, ")"));
   }
+  if (!(options.shared_scan_noise >= 0.0 && options.shared_scan_noise <= 1.0)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("shared_scan_noise: ", options.shared_scan_noise, " is not in [0, 1]"));
+  }
   for (std::size_t e = 0; e < edges.size(); ++e) {
     const PoseGraphEdge& edge = edges[e];
     if (edge.from < 0 || edge.from >= n || edge.to < 0 || edge.to >= n || edge.from == edge.to) {
@@ -289,10 +319,14 @@ absl::StatusOr<PoseGraphResult> OptimisePoseGraph(const std::vector<Matrix4>& in
     ceres::Problem problem;
     AddEdges(problem, blocks, edges, weights.information, use, options, /*robust=*/false);
     result.iterations += Solve(problem, options);
-    // Weighed by covariances, the final solve's own covariance is the poses' (in the edges'
-    // units); weighed by information alone it would be in units of d, and is not reported.
+    // Weighed by covariances, the final solve's covariance is the poses' (in the edges' units),
+    // once the noise that edges share through their scans is counted; weighed by information
+    // alone it would be in units of d, and is not reported.
     if (weights.covariance_weighted > 0) {
-      result.pose_covariances = PoseCovariances(problem, blocks, options.anchor);
+      result.pose_covariances =
+          options.shared_scan_noise > 0.0
+              ? SharedScanCovariances(blocks, edges, weights.information, use, options)
+              : PoseCovariances(problem, blocks, options.anchor);
     }
   }
   result.poses = blocks.Poses();
