@@ -44,9 +44,9 @@ struct PoseGraphOptions {
   bool weigh_by_covariance = true;
   // The reported pose covariances count what edges that share a scan share. Each edge's error
   // comes about half from each scan's data, so two edges sharing a scan correlate by about 1/2,
-  // and k such edges carry the information of 1 + (k - 1) / 2 independent ones. Each kept edge's
-  // covariance is inflated by 1 + shared_scan_noise * (kept edges sharing one of its scans),
-  // with 1/4 = 1/2 (the correlation) averaged over the edge's two scans. 0: the final solve's
+  // and k such edges carry 1 + (k - 1) / 2 times less information than k independent ones. Each
+  // kept edge's covariance is inflated by 1 + shared_scan_noise * (kept edges sharing one of its
+  // scans), with 1/4: the correlation 1/2, averaged over the edge's two scans. 0: the final solve's
   // own covariance, which takes the edges as independent and comes out 1.4-4.5 times too small
   // in sigma on the synthetic street sequences (docs/scenes.md). The poses do not depend on it.
   double shared_scan_noise = 0.25;
