@@ -324,9 +324,7 @@ absl::StatusOr<PoseGraphResult> OptimisePoseGraph(const std::vector<Matrix4>& in
     // alone it would be in units of d, and is not reported.
     if (weights.covariance_weighted > 0) {
       result.pose_covariances =
-          options.shared_scan_noise > 0.0
-              ? SharedScanCovariances(blocks, edges, weights.information, use, options)
-              : PoseCovariances(problem, blocks, options.anchor);
+          SharedScanCovariances(blocks, edges, weights.information, use, options);
     }
   }
   result.poses = blocks.Poses();

@@ -63,8 +63,8 @@ struct PoseGraphResult {
   // Per pose, when covariance_weighted > 0: the covariance of the small motion (rotation vector
   // in radians, then translation of the pose's origin) that would take it to the truth, in the
   // anchor's frame: R_truth = exp(w) R, t_truth = t + v. As calibrated as the edges'
-  // covariances. Empty for the anchor, and when the kept edges leave some direction of some pose
-  // unconstrained.
+  // covariances, with the noise edges share through their scans counted (shared_scan_noise). Empty
+  // for the anchor, and when the kept edges leave some direction of some pose unconstrained.
   std::vector<std::optional<Matrix6>> pose_covariances;
   int iterations = 0;  // of both solves
 };
