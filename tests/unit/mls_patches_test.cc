@@ -68,6 +68,39 @@ TEST(MlsPatchesTest, ReproducesAPlaneExactly) {
   }
 }
 
+// A wall (the plane y = 0) as a spinning LiDAR's far rings sample it: horizontal scan lines 0.2 m
+// apart, samples 2 cm apart along them, moved along their lines of sight from a sensor 10 m in
+// front of the wall by range noise of 0.5 mm. Within r = 0.1 (5 spacings along a ring) a patch's
+// support is one ring: a line, about which the plane through it may tilt freely (the flat fit
+// through it is horizontal, at right angles to the wall). The supports grow until they hold the
+// neighbouring rings, and queries between the rings land on the wall with the wall's normal.
+TEST(MlsPatchesTest, ASupportAlongOneScanLineGrowsAcrossTheLines) {
+  const Vec3 sensor(0.0, -10.0, 0.0);
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> range_noise(0.0, 0.0005);
+  PointCloud wall;
+  for (double z = -1.0; z <= 1.0 + 1e-9; z += 0.2) {
+    for (double x = -2.0; x <= 2.0 + 1e-9; x += 0.02) {
+      const Vec3 p(x, 0.0, z);
+      wall.points.push_back(p + range_noise(rng) * (p - sensor).normalized());
+    }
+  }
+  const KdTree tree(wall.points);
+  const absl::StatusOr<MlsPatches> grown =
+      MlsPatches::Build(wall.points, tree, PatchOptionsWithRadius(0.1), sensor, PatchFitting::kAll,
+                        1, {}, SupportGrowth::kAcrossScanLines);
+  ASSERT_TRUE(grown.ok()) << grown.status();
+  const MlsPatches& patches = *grown;
+  for (double x = -1.0; x <= 1.0; x += 0.25) {
+    for (double z : {-0.53, -0.13, 0.27}) {  // 7 cm above a ring, within r of its anchors
+      const MlsProjection p = patches.Project(Vec3(x, 0.03, z), /*seed_far_queries=*/false);
+      ASSERT_EQ(p.status, ProjectionStatus::kOk) << x << ", " << z;
+      EXPECT_NEAR(p.point.y(), 0.0, 0.002) << x << ", " << z;
+      EXPECT_GT(std::abs(p.normal.y()), std::cos(M_PI / 180.0)) << x << ", " << z;  // 1 degree
+    }
+  }
+}
+
 TEST(MlsPatchesTest, ProjectsOntoSphereAsAccuratelyAsTheExactProjection) {
   // As MlsProjectorTest.ProjectsOntoSphereWithinTolerance (radius 1, randomly sampled, d ~ 0.0125,
   // r = 5 d): |p| = 1 within 0.12 d everywhere and an RMS error no larger than 1.1 times the

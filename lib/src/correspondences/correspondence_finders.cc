@@ -88,9 +88,9 @@ bool MlsCorrespondenceFinder::EnsurePatches() {
   if (projection_ == MlsProjectionKind::kExact || patches_) return true;
   MlsOptions options = projector_.options();
   options.seed_far_queries_from_nearest_sample = true;
-  absl::StatusOr<MlsPatches> built =
-      MlsPatches::Build(target_.points(), target_.tree(), options, target_.cloud().viewpoint,
-                        PatchFitting::kOnFirstUse, threads_, should_stop_);
+  absl::StatusOr<MlsPatches> built = MlsPatches::Build(
+      target_.points(), target_.tree(), options, target_.cloud().viewpoint,
+      PatchFitting::kOnFirstUse, threads_, should_stop_, target_.support_growth());
   if (absl::IsCancelled(built.status())) return false;
   if (built.ok()) {
     own_patches_ = *std::move(built);

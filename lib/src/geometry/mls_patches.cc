@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "absl/strings/str_format.h"
 #include "mlsreg/core/parallel_for.h"
 #include "mlsreg/geometry/neighbor_cache.h"
 #include "mlsreg/geometry/sampling.h"
@@ -36,8 +37,15 @@ MlsPatches::MlsPatches(const std::vector<Vec3>& points, const KdTree& tree, cons
   // about a hundredth of the support, where the fit barely changes, and saves over a third of the
   // iterations (4.1 instead of 6.6 per anchor on a tuning scan at sigma = 2 d, 1,637 anchors; the
   // tuning split's accuracy is unchanged within its spread).
-  if (!(exact.tolerance > 0.0)) exact.tolerance = kAnchorTolerancePerRadius * mls.radius;
-  projector_ = std::make_unique<MlsProjector>(points, tree, exact, viewpoint);
+  const bool default_tolerance = !(exact.tolerance > 0.0);
+  for (int step = 0; step <= kMaxSupportGrowthSteps; ++step) {
+    if (default_tolerance) exact.tolerance = kAnchorTolerancePerRadius * exact.radius;
+    projectors_.push_back(std::make_unique<MlsProjector>(points, tree, exact, viewpoint));
+    // A grown support holds a few scan lines: they fix a plane, while a polynomial across them
+    // would pass through each line and swing freely between them.
+    exact.radius *= kSupportGrowth;
+    exact.polynomial_degree = std::min(exact.polynomial_degree, 1);
+  }
 }
 MlsPatches::MlsPatches(MlsPatches&&) noexcept = default;
 MlsPatches& MlsPatches::operator=(MlsPatches&&) noexcept = default;
@@ -47,9 +55,10 @@ absl::StatusOr<MlsPatches> MlsPatches::Build(const std::vector<Vec3>& points, co
                                              const MlsOptions& mls,
                                              const std::optional<Vec3>& viewpoint,
                                              PatchFitting fitting, int threads,
-                                             const StopCheck& should_stop) {
+                                             const StopCheck& should_stop, SupportGrowth growth) {
   if (!(mls.radius > 0.0)) return absl::InvalidArgumentError("MLS patches need a radius > 0");
   MlsPatches patches(points, tree, mls, viewpoint);
+  patches.growth_ = growth;
   for (std::uint32_t i : VoxelRepresentatives(points, kAnchorSpacingPerRadius * mls.radius)) {
     patches.anchors_.push_back(points[i]);
   }
@@ -62,36 +71,49 @@ absl::StatusOr<MlsPatches> MlsPatches::Build(const std::vector<Vec3>& points, co
   if (should_stop && should_stop()) return absl::CancelledError("MLS patch build cancelled");
 
   std::atomic<bool> fitted_one{false};
-  const bool finished = ProjectEach(
-      *patches.projector_, count, [&](std::size_t i) -> const Vec3& { return patches.anchors_[i]; },
-      [&](std::size_t i, const MlsProjection& projection,
-          const MlsProjector::Workspace& workspace) {
-        const bool ok = projection.status == ProjectionStatus::kOk;
-        if (ok) {
-          patches.patches_[i] = PatchOf(workspace.last_fit);
-          fitted_one.store(true, std::memory_order_relaxed);
-        }
+  const bool finished = ParallelForUntilStopped<MlsProjector::Workspace>(
+      count, threads, should_stop,
+      [&](std::size_t i, MlsProjector::Workspace& workspace) {
+        const bool ok = patches.Fit(i, workspace, patches.patches_[i]);
+        if (ok) fitted_one.store(true, std::memory_order_relaxed);
         patches.states_[i].store(ok ? kFitted : kFailed, std::memory_order_relaxed);
       },
-      threads, should_stop);
+      64);
   if (!finished) return absl::CancelledError("MLS patch build cancelled");
   if (!fitted_one.load()) {
-    return absl::FailedPreconditionError(
-        "no MLS patch could be fitted: the cloud has no neighbourhood of 3 samples within r");
+    return absl::FailedPreconditionError(absl::StrFormat(
+        "no MLS patch could be fitted: the cloud has no neighbourhood of 3 samples within r that "
+        "spans a surface (nor within %.2g r)",
+        std::pow(kSupportGrowth, kMaxSupportGrowthSteps)));
   }
   return patches;
 }
 
-MlsPatches::Patch MlsPatches::PatchOf(const MlsLocalFit& fit) {
-  return Patch{fit.origin,       fit.frame.tangent_u,     fit.frame.tangent_v,
-               fit.frame.normal, fit.height.coefficients, fit.frame.surface_variation};
+MlsPatches::Patch MlsPatches::PatchOf(const MlsLocalFit& fit, double growth) {
+  Patch patch{fit.origin,       fit.frame.tangent_u,     fit.frame.tangent_v,
+              fit.frame.normal, fit.height.coefficients, fit.frame.surface_variation};
+  if (growth != 1.0) {
+    // Fitted over (x, y) / (growth r) with heights in growth r: in units of r a monomial of
+    // degree k takes growth^(1 - k).
+    static constexpr int kMonomialDegree[10] = {0, 1, 1, 2, 2, 2, 3, 3, 3, 3};
+    for (int k = 0; k < 10; ++k) patch.coefficients[k] *= std::pow(growth, 1 - kMonomialDegree[k]);
+  }
+  return patch;
 }
 
 bool MlsPatches::Fit(std::size_t i, MlsProjector::Workspace& workspace, Patch& out) const {
-  const MlsProjection projection = projector_->Project(anchors_[i], workspace);
-  if (projection.status != ProjectionStatus::kOk) return false;
-  out = PatchOf(workspace.last_fit);
-  return true;
+  double growth = 1.0;
+  for (const std::unique_ptr<MlsProjector>& projector : projectors_) {
+    const MlsProjection projection = projector->Project(anchors_[i], workspace);
+    if (projection.status != ProjectionStatus::kOk) return false;
+    const Vec3& spread = workspace.last_fit.frame.eigenvalues;  // ascending
+    if (growth_ == SupportGrowth::kNone || spread[1] >= kMinSupportSpread * spread[2]) {
+      out = PatchOf(workspace.last_fit, growth);
+      return true;
+    }
+    growth *= kSupportGrowth;
+  }
+  return false;  // a line at every support
 }
 
 bool MlsPatches::PatchAt(std::size_t i, Patch& out) const {
@@ -220,7 +242,7 @@ MlsProjection MlsPatches::ProjectNear(const Vec3& query, const Vec3& near, bool 
 
 std::size_t MlsPatches::MemoryBytes() const {
   return patches_.capacity() * (sizeof(Patch) + sizeof(std::atomic<std::uint8_t>)) +
-         anchors_.capacity() * sizeof(Vec3) + sizeof(MlsProjector) +
+         anchors_.capacity() * sizeof(Vec3) + projectors_.size() * sizeof(MlsProjector) +
          (anchor_tree_ ? anchor_tree_->MemoryBytes() : 0);
 }
 

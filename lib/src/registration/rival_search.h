@@ -3,9 +3,9 @@
 // the pose only up to the repeats, and no test at the returned pose tells it from its alias: only
 // finding the other pose can. The result is moved along its weakest direction by one and two
 // final capture ranges of the coarse alignment (2 and 4 working voxels) both ways, the voxel
-// clouds are aligned again from there and each probe is verified. A probe that verifies or is
-// only pulled, explains nearly as many samples, and ends clearly elsewhere is a rival, and the
-// result is `ambiguous` (docs/verification.md, "Rivals").
+// clouds are aligned again from there and each probe is verified. A probe that verifies, is only
+// pulled or fails only on its weakest direction, explains nearly as many samples, and ends
+// clearly elsewhere is a rival, and the result is `ambiguous` (docs/verification.md, "Rivals").
 #pragma once
 
 #include <functional>

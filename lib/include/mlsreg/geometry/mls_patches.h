@@ -12,11 +12,24 @@
 //     Patches are fitted with the anchors (PatchFitting::kAll) or when a query first needs them
 //     (kOnFirstUse: a registration touches the patches near its source only); the values are the
 //     same either way.
+//   - a support that spans a surface (SupportGrowth::kAcrossScanLines, for a scan whose
+//     sampling shows its sensor): where the samples within r lie along one line (one ring of a
+//     LiDAR scan far from the sensor, whose rings lie metres apart there while the samples on a
+//     ring are centimetres apart), the plane through them may tilt freely about the line, and
+//     the patch would be anyone's guess. Such a patch is fitted again with a support
+//     kSupportGrowth times wider, up to kMaxSupportGrowthSteps times, until the support's middle
+//     principal spread is at least kMinSupportSpread of its largest: the support grows to the
+//     sampling across the rings, region by region. A grown support holds a few scan lines,
+//     which fix a plane but not a polynomial across them, so its patch is a plane (degree 1). A
+//     patch whose support is still a line is a failed fit. Object scans keep the paper's
+//     support: the Stanford scanner's lines triggered the growth at the scans' sparse borders,
+//     and MLS-SICP on bunny 090 -> 180 then ended 6.5 d off.
 // A query q is projected vertically onto each of the k patches whose anchors lie nearest to a
 // point near q (first q itself, then q's first estimate on the surface; a warm start supplies a
 // point already on it), and the k surface points and normals are blended with Wendland weights
 // that fall to zero at the (k+1)-th anchor: a partition of unity, continuous in q. An anchor whose
-// fit failed (fewer than 3 samples within r) takes no part.
+// fit failed (fewer than 3 samples within r, or with growth a line at every support) takes no
+// part.
 // The k+1 nearest anchors come from a k-d tree, or from a query's AnchorCache (a NeighborCache:
 // the 12 anchors nearest its last blend point, reused while they provably hold the k+1 nearest).
 // An ICP iteration moves a query by a fraction of the anchor spacing, so one cache per query
@@ -42,6 +55,11 @@
 
 namespace mlsreg {
 
+// Whether a patch whose support lies along one line grows until it spans a surface (see above):
+// for a scan whose sampling shows a scanning sensor (CloudScales::sensor), whose scan lines lie
+// farther apart than its samples along them. An object scan keeps the paper's support.
+enum class SupportGrowth : std::uint8_t { kNone, kAcrossScanLines };
+
 // When the patches are fitted: all with the anchors, or each when a query first needs it.
 enum class PatchFitting : std::uint8_t { kAll, kOnFirstUse };
 
@@ -53,6 +71,12 @@ class MlsPatches {
   // Algorithm 1 fits an anchor's patch until an iteration moves it by less than this share of r
   // (when MlsOptions::tolerance is not set).
   static constexpr double kAnchorTolerancePerRadius = 1e-2;
+  // A patch's support spans a surface when its middle principal spread is at least this share
+  // of its largest (two rings about a fifth of the support apart); else it grows by
+  // kSupportGrowth, at most kMaxSupportGrowthSteps times (see above).
+  static constexpr double kMinSupportSpread = 0.1;
+  static constexpr double kSupportGrowth = 1.5;
+  static constexpr int kMaxSupportGrowthSteps = 3;
 
   // The anchors nearest a query's last blend point, kept for its next projection (see above).
   // Starts empty; owned by the caller, one per query, used by one thread at a time.
@@ -66,7 +90,8 @@ class MlsPatches {
                                           const MlsOptions& mls,
                                           const std::optional<Vec3>& viewpoint,
                                           PatchFitting fitting, int threads,
-                                          const StopCheck& should_stop = {});
+                                          const StopCheck& should_stop = {},
+                                          SupportGrowth growth = SupportGrowth::kNone);
 
   // The MLS projection of `query`. With `seed_far_queries`, a query farther than r from every
   // anchor is replaced by its nearest target sample (seeded_from_nearest_sample); otherwise it
@@ -117,7 +142,8 @@ class MlsPatches {
 
   MlsPatches(const std::vector<Vec3>& points, const KdTree& tree, const MlsOptions& mls,
              const std::optional<Vec3>& viewpoint);
-  static Patch PatchOf(const MlsLocalFit& fit);
+  // The patch of `fit`, made at the support radius growth * r, in units of r.
+  static Patch PatchOf(const MlsLocalFit& fit, double growth);
   // Algorithm 1 from anchor `i`; false when it fails.
   bool Fit(std::size_t i, MlsProjector::Workspace& workspace, Patch& out) const;
   // Anchor i's patch into `out`, fitting it now if no thread has; false when its fit failed.
@@ -130,7 +156,9 @@ class MlsPatches {
   const std::vector<Vec3>* points_;
   const KdTree* tree_;
   MlsOptions mls_;
-  std::unique_ptr<MlsProjector> projector_;  // the exact Algorithm 1 that fits the patches
+  SupportGrowth growth_ = SupportGrowth::kNone;
+  // The exact Algorithm 1 that fits the patches, at r and at each grown support.
+  std::vector<std::unique_ptr<MlsProjector>> projectors_;
   // Written once per patch, by the thread that moved its state from kUnfitted to kFitting;
   // read only after its state is kFitted (acquire).
   mutable std::vector<Patch> patches_;

@@ -89,6 +89,10 @@ class Target {
   double sampling_distance() const { return sampling_distance_; }
   // How the cloud is sampled: spacing percentiles, extent, the working voxel.
   const CloudScales& scales() const { return scales_; }
+  // How its MLS patches' supports grow: across the scan lines where its sampling shows a sensor.
+  SupportGrowth support_growth() const {
+    return scales_.sensor ? SupportGrowth::kAcrossScanLines : SupportGrowth::kNone;
+  }
   // The cloud at its working voxel (scales().working_voxel), with normals and an index.
   const VoxelCloud& voxel_cloud() const { return voxel_cloud_; }
   // What the scan's sensor saw, when the sampling shows a sensor (scales().sensor), else null.
