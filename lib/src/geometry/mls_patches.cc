@@ -28,8 +28,8 @@ HeightWithGradient EvaluateHeight(const std::array<double, 10>& c, double x, dou
 }  // namespace
 
 MlsPatches::MlsPatches(const std::vector<Vec3>& points, const KdTree& tree, const MlsOptions& mls,
-                       const std::optional<Vec3>& viewpoint)
-    : points_(&points), tree_(&tree), mls_(mls) {
+                       const std::optional<Vec3>& viewpoint, SupportGrowth growth)
+    : points_(&points), tree_(&tree), mls_(mls), growth_(growth) {
   MlsOptions exact = mls;
   exact.seed_far_queries_from_nearest_sample = false;
   // An anchor's patch is the fit around wherever Algorithm 1 stops. Stopping once an iteration
@@ -38,7 +38,8 @@ MlsPatches::MlsPatches(const std::vector<Vec3>& points, const KdTree& tree, cons
   // iterations (4.1 instead of 6.6 per anchor on a tuning scan at sigma = 2 d, 1,637 anchors; the
   // tuning split's accuracy is unchanged within its spread).
   const bool default_tolerance = !(exact.tolerance > 0.0);
-  for (int step = 0; step <= kMaxSupportGrowthSteps; ++step) {
+  const int steps = growth == SupportGrowth::kNone ? 0 : kMaxSupportGrowthSteps;
+  for (int step = 0; step <= steps; ++step) {
     if (default_tolerance) exact.tolerance = kAnchorTolerancePerRadius * exact.radius;
     projectors_.push_back(std::make_unique<MlsProjector>(points, tree, exact, viewpoint));
     // A grown support holds a few scan lines: they fix a plane, while a polynomial across them
@@ -57,8 +58,7 @@ absl::StatusOr<MlsPatches> MlsPatches::Build(const std::vector<Vec3>& points, co
                                              PatchFitting fitting, int threads,
                                              const StopCheck& should_stop, SupportGrowth growth) {
   if (!(mls.radius > 0.0)) return absl::InvalidArgumentError("MLS patches need a radius > 0");
-  MlsPatches patches(points, tree, mls, viewpoint);
-  patches.growth_ = growth;
+  MlsPatches patches(points, tree, mls, viewpoint, growth);
   for (std::uint32_t i : VoxelRepresentatives(points, kAnchorSpacingPerRadius * mls.radius)) {
     patches.anchors_.push_back(points[i]);
   }
@@ -81,10 +81,13 @@ absl::StatusOr<MlsPatches> MlsPatches::Build(const std::vector<Vec3>& points, co
       64);
   if (!finished) return absl::CancelledError("MLS patch build cancelled");
   if (!fitted_one.load()) {
-    return absl::FailedPreconditionError(absl::StrFormat(
-        "no MLS patch could be fitted: the cloud has no neighbourhood of 3 samples within r that "
-        "spans a surface (nor within %.2g r)",
-        std::pow(kSupportGrowth, kMaxSupportGrowthSteps)));
+    return absl::FailedPreconditionError(
+        growth == SupportGrowth::kNone
+            ? std::string("no MLS patch could be fitted: the cloud has no neighbourhood of 3 "
+                          "samples within r")
+            : absl::StrFormat("no MLS patch could be fitted: the cloud has no neighbourhood of 3 "
+                              "samples within r that spans a surface (nor within %.2g r)",
+                              std::pow(kSupportGrowth, kMaxSupportGrowthSteps)));
   }
   return patches;
 }

@@ -141,7 +141,7 @@ class MlsPatches {
   };
 
   MlsPatches(const std::vector<Vec3>& points, const KdTree& tree, const MlsOptions& mls,
-             const std::optional<Vec3>& viewpoint);
+             const std::optional<Vec3>& viewpoint, SupportGrowth growth);
   // The patch of `fit`, made at the support radius growth * r, in units of r.
   static Patch PatchOf(const MlsLocalFit& fit, double growth);
   // Algorithm 1 from anchor `i`; false when it fails.
