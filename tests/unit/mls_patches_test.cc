@@ -208,6 +208,40 @@ TEST(MlsPatchesTest, FarQueryIsSeededFromNearestSampleOrRejected) {
   EXPECT_EQ(rejected.status, ProjectionStatus::kTooFewNeighbors);
 }
 
+TEST(MlsPatchesTest, ASeedMemoGivesTheSameFarProjectionsAndReusesThem) {
+  // Far queries (beyond r of every anchor) wandering above a plane, as a source point outside
+  // the overlap moves during ICP: with a memo per query the seeded projections are bit for bit
+  // those without, and the memo names the nearest sample they were seeded from.
+  const PointCloud plane = SamplePlaneGrid(1.0, 0.05, 0.0, 1);
+  const KdTree tree(plane.points);
+  const MlsPatches patches = BuildPatches(plane, tree, 0.2);
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> step(-0.01, 0.01);
+  int calls = 0, same_sample = 0;
+  for (int walk = 0; walk < 20; ++walk) {
+    Vec3 q(0.2 + 0.03 * walk, 0.5, 0.5 + 0.1 * walk);
+    MlsPatches::AnchorCache cache;
+    MlsPatches::SeedMemo memo;
+    for (int i = 0; i < 25; ++i, ++calls) {
+      q += Vec3(step(rng), step(rng), step(rng));
+      const std::uint32_t before = memo.sample;
+      const MlsProjection cold = patches.Project(q, true);
+      const MlsProjection memoised = patches.Project(q, true, &cache, nullptr, &memo);
+      ASSERT_EQ(cold.status, ProjectionStatus::kOk);
+      ASSERT_TRUE(cold.seeded_from_nearest_sample);
+      EXPECT_EQ(memoised.status, cold.status);
+      EXPECT_TRUE(memoised.seeded_from_nearest_sample);
+      EXPECT_EQ(memoised.point, cold.point) << "walk " << walk << " step " << i;
+      EXPECT_EQ(memoised.normal, cold.normal);
+      EXPECT_EQ(memoised.curvature, cold.curvature);
+      EXPECT_EQ(memo.sample, tree.Nearest(q).index);
+      same_sample += memo.sample == before;
+    }
+  }
+  // Steps of at most 1 cm on a 5 cm grid: most keep their nearest sample, and reuse.
+  EXPECT_GT(same_sample, calls / 2) << same_sample << " of " << calls;
+}
+
 // A query refused for lying beyond the surface's reach (a source point outside the overlap)
 // leaves the patches as they were: none is fitted for it; a query on the surface fits some.
 TEST(MlsPatchesTest, ARefusedFarQueryFitsNoPatch) {

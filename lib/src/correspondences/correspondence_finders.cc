@@ -109,6 +109,7 @@ void MlsCorrespondenceFinder::Find(std::span<const Vec3> queries, std::span<Corr
   }
   if (anchors_.size() != queries.size() || anchors_of_ != patches_) {
     anchors_.assign(queries.size(), MlsPatches::AnchorCache{});
+    seeds_.assign(queries.size(), MlsPatches::SeedMemo{});
     anchors_of_ = patches_;
   }
   if (!patches_ && kept_.size() != queries.size()) kept_.assign(queries.size(), {});
@@ -127,11 +128,12 @@ void MlsCorrespondenceFinder::Find(std::span<const Vec3> queries, std::span<Corr
 MlsProjection MlsCorrespondenceFinder::ProjectOne(const Vec3& query, const Vec3* start,
                                                   MlsProjector::Workspace& workspace,
                                                   MlsPatches::AnchorCache& anchors,
+                                                  MlsPatches::SeedMemo& seed,
                                                   KeptNeighborhood* kept) const {
-  const bool seed = far_queries_ != FarQueryPolicy::kDrop;
+  const bool seed_far = far_queries_ != FarQueryPolicy::kDrop;
   if (patches_) {
-    return start ? patches_->ProjectNear(query, *start, seed, &anchors)
-                 : patches_->Project(query, seed, &anchors);
+    return start ? patches_->ProjectNear(query, *start, seed_far, &anchors)
+                 : patches_->Project(query, seed_far, &anchors, nullptr, &seed);
   }
   const MlsProjection projection = projector_.ProjectFrom(start ? *start : query, workspace, kept);
   // A neighbourhood in a dense cluster is not worth its memory for every sample.
@@ -169,8 +171,8 @@ bool MlsCorrespondenceFinder::FindRange(std::span<const Vec3> queries,
         !patches_ && warm &&
         (start - previous.point).squaredNorm() <
             MlsProjector::kKeptMargin * MlsProjector::kKeptMargin * radius_ * radius_;
-    const MlsProjection projection =
-        ProjectOne(q, warm ? &start : nullptr, workspace, anchors_[i], keeps ? &kept_[i] : nullptr);
+    const MlsProjection projection = ProjectOne(q, warm ? &start : nullptr, workspace, anchors_[i],
+                                                seeds_[i], keeps ? &kept_[i] : nullptr);
     iterations += projection.iterations;
     Correspondence& c = out[i];
     c.point = projection.point;

@@ -201,24 +201,35 @@ MlsPatches::Blend MlsPatches::BlendAt(const Vec3& query, const Vec3& near, Ancho
   return blend;
 }
 
+std::optional<MlsProjection> MlsPatches::SeededAt(std::uint32_t sample) const {
+  const Vec3& at = (*points_)[sample];
+  Blend seeded = BlendAt(at, at);
+  if (seeded.ok) {
+    const Blend refined = BlendAt(at, seeded.projection.point);
+    if (refined.ok) seeded = refined;
+  }
+  if (!seeded.ok) return std::nullopt;
+  seeded.projection.seeded_from_nearest_sample = true;
+  seeded.projection.iterations = 2;
+  return seeded.projection;
+}
+
 MlsProjection MlsPatches::Finish(const Vec3& query, const Vec3& near, bool seed_far_queries,
-                                 int blends, AnchorCache* cache, AnchorCache* foot_cache) const {
+                                 int blends, AnchorCache* cache, AnchorCache* foot_cache,
+                                 SeedMemo* seed_memo) const {
   Blend blend = BlendAt(query, near, cache, mls_.radius);
   if (!blend.ok || blend.nearest_distance > mls_.radius) {
     MlsProjection far;
     far.status = ProjectionStatus::kTooFewNeighbors;
     if (!seed_far_queries || tree_->size() == 0) return far;
     // As Algorithm 1 does for such queries: project the nearest target sample instead.
-    const Vec3& sample = (*points_)[tree_->Nearest(query).index];
-    Blend seeded = BlendAt(sample, sample);
-    if (seeded.ok) {
-      const Blend refined = BlendAt(sample, seeded.projection.point);
-      if (refined.ok) seeded = refined;
+    const std::uint32_t sample = tree_->Nearest(query).index;
+    if (seed_memo == nullptr) return SeededAt(sample).value_or(far);
+    if (seed_memo->sample != sample) {
+      seed_memo->sample = sample;
+      seed_memo->projection = SeededAt(sample).value_or(far);
     }
-    if (!seeded.ok) return far;
-    seeded.projection.seeded_from_nearest_sample = true;
-    seeded.projection.iterations = 2;
-    return seeded.projection;
+    return seed_memo->projection;
   }
   if (blends > 1) {
     // Patches chosen around the first estimate, which lies on the surface: the right ones even
@@ -234,13 +245,13 @@ MlsProjection MlsPatches::Finish(const Vec3& query, const Vec3& near, bool seed_
 }
 
 MlsProjection MlsPatches::Project(const Vec3& query, bool seed_far_queries, AnchorCache* cache,
-                                  AnchorCache* foot_cache) const {
-  return Finish(query, query, seed_far_queries, 2, cache, foot_cache);
+                                  AnchorCache* foot_cache, SeedMemo* seed_memo) const {
+  return Finish(query, query, seed_far_queries, 2, cache, foot_cache, seed_memo);
 }
 
 MlsProjection MlsPatches::ProjectNear(const Vec3& query, const Vec3& near, bool seed_far_queries,
                                       AnchorCache* cache) const {
-  return Finish(query, near, seed_far_queries, 1, cache, nullptr);
+  return Finish(query, near, seed_far_queries, 1, cache, nullptr, nullptr);
 }
 
 std::size_t MlsPatches::MemoryBytes() const {

@@ -76,7 +76,8 @@ class MlsCorrespondenceFinder final : public CorrespondenceFinder {
   // The projection of `query`, from `start` when warm.
   // The exact projection keeps the query's neighbourhood in `kept` for its next projection.
   MlsProjection ProjectOne(const Vec3& query, const Vec3* start, MlsProjector::Workspace& workspace,
-                           MlsPatches::AnchorCache& anchors, KeptNeighborhood* kept) const;
+                           MlsPatches::AnchorCache& anchors, MlsPatches::SeedMemo& seed,
+                           KeptNeighborhood* kept) const;
   // Builds the patches this finder needs when the target's do not fit; false when stopped.
   bool EnsurePatches();
 
@@ -91,8 +92,9 @@ class MlsCorrespondenceFinder final : public CorrespondenceFinder {
   std::optional<MlsPatches> own_patches_;
   std::vector<ThreadState> threads_state_;
   std::vector<MlsProjection> previous_;
-  // Per query: the patches' anchors nearest its last projection (valid for anchors_of_ only).
+  // Per query: the patches' anchors nearest its last projection (valid for anchors_of_ only)
   std::vector<MlsPatches::AnchorCache> anchors_;
+  std::vector<MlsPatches::SeedMemo> seeds_;  // and its last seeded projection when far
   const MlsPatches* anchors_of_ = nullptr;
   // Per query: the target samples around its last exact projection (MlsProjector::ProjectFrom),
   // dropped when larger than kMaxKeptSamples.

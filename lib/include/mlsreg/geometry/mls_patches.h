@@ -81,6 +81,14 @@ class MlsPatches {
   // The anchors nearest a query's last blend point, kept for its next projection (see above).
   // Starts empty; owned by the caller, one per query, used by one thread at a time.
   using AnchorCache = NeighborCache<12>;
+  // A far query's last seeded projection (Project with seed_far_queries): the target sample it
+  // was seeded from and the projection that gave. The projection depends on that sample alone,
+  // so while the query's nearest sample stays the same it is reused, not blended again. Owned
+  // by the caller, one per query, beside its AnchorCache.
+  struct SeedMemo {
+    std::uint32_t sample = std::numeric_limits<std::uint32_t>::max();
+    MlsProjection projection;
+  };
 
   // `points` and `tree` must outlive the patches; `mls` and `viewpoint` (output normals point
   // toward it; without one their sign is arbitrary but consistent per query) as for MlsProjector.
@@ -102,8 +110,10 @@ class MlsPatches {
   // again from nearly the same place (a verification's settling) then finds both blends' anchors
   // in their caches, where one cache would be refilled at both points whenever the query lies
   // farther from the surface than the cache reaches.
+  // With `seed_memo`, a seeded projection is reused from it when its sample is the same (bit for
+  // bit the same result).
   MlsProjection Project(const Vec3& query, bool seed_far_queries, AnchorCache* cache = nullptr,
-                        AnchorCache* foot_cache = nullptr) const;
+                        AnchorCache* foot_cache = nullptr, SeedMemo* seed_memo = nullptr) const;
   // The same, with the patches chosen around `near`, a point already close to the surface (a
   // warm start: the query on its previous projection's tangent plane). One blend instead of two.
   MlsProjection ProjectNear(const Vec3& query, const Vec3& near, bool seed_far_queries,
@@ -151,7 +161,9 @@ class MlsPatches {
   Blend BlendAt(const Vec3& query, const Vec3& near, AnchorCache* cache = nullptr,
                 double beyond = std::numeric_limits<double>::infinity()) const;
   MlsProjection Finish(const Vec3& query, const Vec3& near, bool seed_far_queries, int blends,
-                       AnchorCache* cache, AnchorCache* foot_cache) const;
+                       AnchorCache* cache, AnchorCache* foot_cache, SeedMemo* seed_memo) const;
+  // The projection that stands in for a far query: its nearest target sample `sample`'s.
+  std::optional<MlsProjection> SeededAt(std::uint32_t sample) const;
 
   const std::vector<Vec3>* points_;
   const KdTree* tree_;
