@@ -141,8 +141,11 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
                            result.transform(r, 1), result.transform(r, 2), result.transform(r, 3));
   }
   if (const std::optional<AutoReport>& a = result.auto_report; a && !a->candidates.empty()) {
-    out += absl::StrFormat("auto: candidate %d of %zu chosen%s\n", a->chosen, a->candidates.size(),
-                           a->early_exit ? " (the start verified: no global stage)" : "");
+    out += absl::StrFormat(
+        "auto: candidate %d of %zu chosen%s%s\n", a->chosen, a->candidates.size(),
+        a->early_exit ? " (the start verified: no global stage)" : "",
+        a->polished_by_settling ? "; pulled, then moved where the verification's settling put it"
+                                : "");
     out += absl::StrFormat(
         "auto stages: start %.3f s, global %.3f s (%d feature matches), candidates %.3f s, final "
         "%.3f s, rival search %.3f s\n",
@@ -337,6 +340,7 @@ nlohmann::json ResultJson(std::string_view method, const RegistrationResult& res
     j["auto"] = {{"verified", a->verified},
                  {"chosen", a->chosen},
                  {"early_exit", a->early_exit},
+                 {"polished_by_settling", a->polished_by_settling},
                  {"feature_matches", a->feature_matches},
                  {"candidates", candidates},
                  {"stage_seconds",

@@ -137,6 +137,7 @@ void AutoReportToProto(const AutoReport& r, v1::AutoReport* out) {
   out->set_final_seconds(r.timings.final);
   out->set_rivals_seconds(r.timings.rivals);
   if (r.rival) out->set_rival(*r.rival);
+  out->set_polished_by_settling(r.polished_by_settling);
   v1::FinishReport* finish = out->mutable_finish();
   finish->set_kind(
       static_cast<v1::FinishKind>(EnumToWire(FinishKindNames(), static_cast<int>(r.finish.kind))));
@@ -161,6 +162,7 @@ AutoReport AutoReportFromProto(const v1::AutoReport& p) {
   r.timings = {p.start_seconds(), p.global_seconds(), p.candidates_seconds(), p.final_seconds(),
                p.rivals_seconds()};
   if (p.has_rival()) r.rival = p.rival();
+  r.polished_by_settling = p.polished_by_settling();
   const v1::FinishReport& finish = p.finish();
   r.finish.kind = EnumFromWire(FinishKindNames(), finish.kind(), FinishKind::kNone, "finish.kind")
                       .value_or(FinishKind::kNone);

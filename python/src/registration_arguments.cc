@@ -104,6 +104,7 @@ py::dict AutoToPython(const AutoReport& report) {
       py::arg("verified") = report.verified,
       py::arg("verification") = ScoreToPython(report.verification),
       py::arg("early_exit") = report.early_exit,
+      py::arg("polished_by_settling") = report.polished_by_settling,
       py::arg("feature_matches") = report.feature_matches,
       py::arg("timings") = py::dict(py::arg("start") = t.start, py::arg("global") = t.global,
                                     py::arg("candidates") = t.candidates,

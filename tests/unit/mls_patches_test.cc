@@ -88,7 +88,7 @@ TEST(MlsPatchesTest, ASupportAlongOneScanLineGrowsAcrossTheLines) {
   const KdTree tree(wall.points);
   const absl::StatusOr<MlsPatches> grown =
       MlsPatches::Build(wall.points, tree, PatchOptionsWithRadius(0.1), sensor, PatchFitting::kAll,
-                        1, {}, SupportGrowth::kAcrossScanLines);
+                        1, {}, SensorFinding{sensor, /*angular_step=*/0.02 / 10.0});
   ASSERT_TRUE(grown.ok()) << grown.status();
   const MlsPatches& patches = *grown;
   for (double x = -1.0; x <= 1.0; x += 0.25) {
@@ -99,6 +99,46 @@ TEST(MlsPatchesTest, ASupportAlongOneScanLineGrowsAcrossTheLines) {
       EXPECT_GT(std::abs(p.normal.y()), std::cos(M_PI / 180.0)) << x << ", " << z;  // 1 degree
     }
   }
+}
+
+// A LiDAR ring 30 m out crossing the edge of a wedge that points at the sensor (two walls at
+// right angles, x = 30 - |y|): within r the ring bends round the edge and spans a plane, so its
+// support does not grow, but that plane is the beam's cone (here horizontal), at right angles to
+// both walls. The patch says it lies on one scan line. Away from the edge a ring on a wall is a
+// line: its support grows across the rings (1 degree apart, 0.52 m here) and is not flagged.
+TEST(MlsPatchesTest, APatchOnOneScanLineSaysSo) {
+  const double step = 0.2 * M_PI / 180.0, beam = 1.0 * M_PI / 180.0;
+  PointCloud wedge;
+  for (int b = -4; b <= 4; ++b) {
+    const double e = b * beam;
+    for (double a = -0.35; a <= 0.35; a += step) {
+      const Vec3 ray(std::cos(e) * std::cos(a), std::cos(e) * std::sin(a), std::sin(e));
+      wedge.points.push_back(ray * (30.0 / (ray.x() + std::abs(ray.y()))));
+    }
+  }
+  const KdTree tree(wedge.points);
+  const SensorFinding sensor{Vec3::Zero(), step};
+  const absl::StatusOr<MlsPatches> patches =
+      MlsPatches::Build(wedge.points, tree, PatchOptionsWithRadius(0.3), Vec3::Zero(),
+                        PatchFitting::kAll, 1, {}, sensor);
+  ASSERT_TRUE(patches.ok()) << patches.status();
+  // On the edge, on the ring at elevation 0.
+  const MlsProjection edge = patches->Project(Vec3(29.98, 0.0, 0.0), false);
+  ASSERT_EQ(edge.status, ProjectionStatus::kOk);
+  EXPECT_TRUE(edge.one_scan_line);
+  EXPECT_GT(std::abs(edge.normal.z()), 0.9) << edge.normal.transpose();  // the cone's, flat
+  // On a wall, 4-5 m from the edge, between two rings.
+  const Vec3 wall_normal = Vec3(1.0, 1.0, 0.0).normalized();
+  for (const double y : {4.0, 4.5, 5.0}) {
+    const Vec3 on_wall(30.0 - y, y, 0.25 * 30.0 * beam);
+    const MlsProjection p = patches->Project(on_wall, false);
+    ASSERT_EQ(p.status, ProjectionStatus::kOk) << y;
+    EXPECT_FALSE(p.one_scan_line) << y;
+    EXPECT_GT(std::abs(p.normal.dot(wall_normal)), std::cos(2.0 * M_PI / 180.0)) << y;
+  }
+  // Without a sensor (an object scan) no patch grows or says anything of scan lines.
+  const MlsPatches object = BuildPatches(wedge, tree, 0.3);
+  EXPECT_FALSE(object.Project(Vec3(29.98, 0.0, 0.0), false).one_scan_line);
 }
 
 TEST(MlsPatchesTest, ProjectsOntoSphereAsAccuratelyAsTheExactProjection) {

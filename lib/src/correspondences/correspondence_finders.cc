@@ -90,7 +90,7 @@ bool MlsCorrespondenceFinder::EnsurePatches() {
   options.seed_far_queries_from_nearest_sample = true;
   absl::StatusOr<MlsPatches> built = MlsPatches::Build(
       target_.points(), target_.tree(), options, target_.cloud().viewpoint,
-      PatchFitting::kOnFirstUse, threads_, should_stop_, target_.support_growth());
+      PatchFitting::kOnFirstUse, threads_, should_stop_, target_.scan_sensor());
   if (absl::IsCancelled(built.status())) return false;
   if (built.ok()) {
     own_patches_ = *std::move(built);

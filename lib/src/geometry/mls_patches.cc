@@ -1,5 +1,6 @@
 #include "mlsreg/geometry/mls_patches.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -25,11 +26,45 @@ HeightWithGradient EvaluateHeight(const std::array<double, 10>& c, double x, dou
           c[2] + c[4] * x + 2.0 * c[5] * y + c[7] * xx + 2.0 * c[8] * xy + 3.0 * c[9] * yy};
 }
 
+// Whether the last fit's support (its samples of weight > 0) lies on one scan line of `sensor`:
+// the directions from the sensor to the samples spread across the line they span (the middle
+// principal spread, about their mean line of sight) by less than kOneScanLineSpreadPerStep of
+// the sensor's angular step.
+bool OnOneScanLine(const std::vector<Vec3>& points, const MlsProjector::Workspace& ws,
+                   const SensorFinding& sensor) {
+  const RadiusNeighbors& support = ws.gathered.samples;
+  const auto direction = [&](std::size_t j) {
+    return (points[support[j].first] - sensor.position).normalized();
+  };
+  Vec3 sight = Vec3::Zero();
+  int count = 0;
+  for (std::size_t j = 0; j < support.size(); ++j) {
+    if (!(ws.weights[j] > 0.0)) continue;
+    sight += direction(j);
+    ++count;
+  }
+  if (count < 3 || !(sight.squaredNorm() > 0.0)) return false;
+  sight.normalize();
+  Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
+  for (std::size_t j = 0; j < support.size(); ++j) {
+    if (!(ws.weights[j] > 0.0)) continue;
+    const Vec3 u = direction(j);
+    const Vec3 off_sight = u - u.dot(sight) * sight;
+    spread.noalias() += off_sight * off_sight.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(spread / count,
+                                                              Eigen::EigenvaluesOnly);
+  // Ascending: about 0 along the mean line of sight, then across the scan line, then along it.
+  const double across = std::sqrt(std::max(solver.eigenvalues()[1], 0.0));
+  return across < MlsPatches::kOneScanLineSpreadPerStep * sensor.angular_step;
+}
+
 }  // namespace
 
 MlsPatches::MlsPatches(const std::vector<Vec3>& points, const KdTree& tree, const MlsOptions& mls,
-                       const std::optional<Vec3>& viewpoint, SupportGrowth growth)
-    : points_(&points), tree_(&tree), mls_(mls), growth_(growth) {
+                       const std::optional<Vec3>& viewpoint,
+                       const std::optional<SensorFinding>& scan_sensor)
+    : points_(&points), tree_(&tree), mls_(mls), scan_sensor_(scan_sensor) {
   MlsOptions exact = mls;
   exact.seed_far_queries_from_nearest_sample = false;
   // An anchor's patch is the fit around wherever Algorithm 1 stops. Stopping once an iteration
@@ -38,7 +73,7 @@ MlsPatches::MlsPatches(const std::vector<Vec3>& points, const KdTree& tree, cons
   // iterations (4.1 instead of 6.6 per anchor on a tuning scan at sigma = 2 d, 1,637 anchors; the
   // tuning split's accuracy is unchanged within its spread).
   const bool default_tolerance = !(exact.tolerance > 0.0);
-  const int steps = growth == SupportGrowth::kNone ? 0 : kMaxSupportGrowthSteps;
+  const int steps = scan_sensor ? kMaxSupportGrowthSteps : 0;
   for (int step = 0; step <= steps; ++step) {
     if (default_tolerance) exact.tolerance = kAnchorTolerancePerRadius * exact.radius;
     projectors_.push_back(std::make_unique<MlsProjector>(points, tree, exact, viewpoint));
@@ -56,9 +91,10 @@ absl::StatusOr<MlsPatches> MlsPatches::Build(const std::vector<Vec3>& points, co
                                              const MlsOptions& mls,
                                              const std::optional<Vec3>& viewpoint,
                                              PatchFitting fitting, int threads,
-                                             const StopCheck& should_stop, SupportGrowth growth) {
+                                             const StopCheck& should_stop,
+                                             const std::optional<SensorFinding>& scan_sensor) {
   if (!(mls.radius > 0.0)) return absl::InvalidArgumentError("MLS patches need a radius > 0");
-  MlsPatches patches(points, tree, mls, viewpoint, growth);
+  MlsPatches patches(points, tree, mls, viewpoint, scan_sensor);
   for (std::uint32_t i : VoxelRepresentatives(points, kAnchorSpacingPerRadius * mls.radius)) {
     patches.anchors_.push_back(points[i]);
   }
@@ -82,7 +118,7 @@ absl::StatusOr<MlsPatches> MlsPatches::Build(const std::vector<Vec3>& points, co
   if (!finished) return absl::CancelledError("MLS patch build cancelled");
   if (!fitted_one.load()) {
     return absl::FailedPreconditionError(
-        growth == SupportGrowth::kNone
+        !scan_sensor
             ? std::string("no MLS patch could be fitted: the cloud has no neighbourhood of 3 "
                           "samples within r")
             : absl::StrFormat("no MLS patch could be fitted: the cloud has no neighbourhood of 3 "
@@ -93,8 +129,13 @@ absl::StatusOr<MlsPatches> MlsPatches::Build(const std::vector<Vec3>& points, co
 }
 
 MlsPatches::Patch MlsPatches::PatchOf(const MlsLocalFit& fit, double growth) {
-  Patch patch{fit.origin,       fit.frame.tangent_u,     fit.frame.tangent_v,
-              fit.frame.normal, fit.height.coefficients, fit.frame.surface_variation};
+  Patch patch{fit.origin,
+              fit.frame.tangent_u,
+              fit.frame.tangent_v,
+              fit.frame.normal,
+              fit.height.coefficients,
+              fit.frame.surface_variation,
+              false};
   if (growth != 1.0) {
     // Fitted over (x, y) / (growth r) with heights in growth r: in units of r a monomial of
     // degree k takes growth^(1 - k).
@@ -110,8 +151,9 @@ bool MlsPatches::Fit(std::size_t i, MlsProjector::Workspace& workspace, Patch& o
     const MlsProjection projection = projector->Project(anchors_[i], workspace);
     if (projection.status != ProjectionStatus::kOk) return false;
     const Vec3& spread = workspace.last_fit.frame.eigenvalues;  // ascending
-    if (growth_ == SupportGrowth::kNone || spread[1] >= kMinSupportSpread * spread[2]) {
+    if (!scan_sensor_ || spread[1] >= kMinSupportSpread * spread[2]) {
       out = PatchOf(workspace.last_fit, growth);
+      if (scan_sensor_) out.one_scan_line = OnOneScanLine(*points_, workspace, *scan_sensor_);
       return true;
     }
     growth *= kSupportGrowth;
@@ -172,6 +214,7 @@ MlsPatches::Blend MlsPatches::BlendAt(const Vec3& query, const Vec3& near, Ancho
   Vec3 point_sum = Vec3::Zero(), normal_sum = Vec3::Zero();
   double variation_sum = 0.0, weight_sum = 0.0;
   int contributing = 0;
+  bool one_scan_line = false;
   Patch patch;
   for (std::size_t j = 0; j < used; ++j) {
     double w = WendlandWeight(std::sqrt(distance_squared[j]), support);
@@ -187,6 +230,7 @@ MlsPatches::Blend MlsPatches::BlendAt(const Vec3& query, const Vec3& near, Ancho
     normal_sum += w * normal;
     variation_sum += w * patch.surface_variation;
     weight_sum += w;
+    one_scan_line = one_scan_line || patch.one_scan_line;
     ++contributing;
   }
   if (contributing == 0) return blend;
@@ -197,6 +241,7 @@ MlsPatches::Blend MlsPatches::BlendAt(const Vec3& query, const Vec3& near, Ancho
   p.neighbors = contributing;
   p.iterations = 1;
   p.status = ProjectionStatus::kOk;
+  p.one_scan_line = one_scan_line;
   blend.ok = p.point.allFinite() && p.normal.allFinite();
   return blend;
 }

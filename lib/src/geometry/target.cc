@@ -89,7 +89,7 @@ absl::StatusOr<std::shared_ptr<Target>> Target::BuildMutable(PointCloud cloud,
                                      : PatchFitting::kOnFirstUse;
     absl::StatusOr<MlsPatches> patches =
         MlsPatches::Build(target->cloud_.points, *target->tree_, mls, target->cloud_.viewpoint,
-                          fitting, options.threads, should_stop, target->support_growth());
+                          fitting, options.threads, should_stop, target->scan_sensor());
     if (absl::IsCancelled(patches.status())) return cancelled();
     // A cloud no patch fits (no 3 samples within r anywhere) is still a target: MLS matching
     // against it then runs the exact Algorithm 1, which reports the same shortage per query.

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include "absl/strings/str_format.h"
 #include "mlsreg/core/parallel_for.h"
@@ -40,6 +41,9 @@ struct SurfaceHit {
   double across = 0.0;
   // The target's noise there: its spread about its voxel's plane where that is flat.
   double local_noise = 0.0;
+  // Where they differ from `normal` and `across` (a patch on one scan line): the settling's.
+  std::optional<Vec3> settle_normal;
+  double settle_across = 0.0;
 };
 
 using SampleCaches = VerificationCaches::Sample;
@@ -73,6 +77,13 @@ SurfaceHit HitSurface(const Target& target, const Vec3& x, std::uint32_t voxel,
       hit.normal = p.normal;
       hit.across = (x - p.point).dot(p.normal);
       hit.distance = (x - p.point).norm();
+      // A patch fitted to one scan line lies in the beam's cone, whatever the surface does
+      // above and below the ring (MlsPatches): the settling measures the sample along the
+      // normal of its voxel instead, whose samples span the rings around.
+      if (p.one_scan_line && voxels.valid[voxel]) {
+        hit.settle_normal = voxels.normals[voxel];
+        hit.settle_across = (x - p.point).dot(*hit.settle_normal);
+      }
       return hit;
     }
   }
@@ -254,17 +265,42 @@ SharedResiduals MeasureSharedResiduals(std::span<const Pull> pulls, double radiu
 
 // Where the data move the pose: up to kSettleSteps point-to-plane steps on the target's
 // surface from it, each over the samples inside their band at the moved pose, ending early once
-// a step moves the samples by less than `tolerance`. Returns the RMS distance the samples in
-// `moved` (the inliers at the pose) travel. A right pose moves by its registration precision; a
-// pose turned or slid off the truth moves back toward it. `hits` holds the samples at `pose`
-// on entry (the first step starts from them).
+// a step moves the samples by less than `tolerance`. Returns the pose it stops at and the RMS
+// distance the inliers at `pose` (state 2) travel to it. A right pose moves by its registration
+// precision; a pose turned or slid off the truth moves back toward it. `hits` holds the samples
+// at `pose` on entry (the first step starts from them).
+// Samples whose patch lies on one scan line are measured along their voxel's normal
+// (SurfaceHit::settle_normal) when they are a minority, at most kMaxOneScanLineShare of the
+// samples in their band at `pose`: the far façades of a sparse sensor (16-beam tuning streets:
+// 6-13 %), whose flat patches would walk the pose in pitch. Where they are many (64-beam
+// corridors and an open road seen at grazing incidence: 25-37 %) the coarse voxel normals would
+// blur the structure that fixes the slide along them (a corridor pose 0.49 m off then settled
+// in place and verified), and every sample keeps its patch's normal.
 constexpr int kSettleSteps = 6;
+constexpr double kMaxOneScanLineShare = 0.2;
+struct Settling {
+  double displacement = 0.0;  // RMS, of the inliers at the pose
+  Matrix4 pose = Matrix4::Identity();
+  bool one_scan_lines_corrected = false;  // samples on one scan line took their voxel's normal
+};
 template <typename BandOf>
-double SettleDisplacement(const Target& target, std::span<const Vec3> points,
-                          std::span<const std::uint8_t> state, std::span<SampleCaches> caches,
-                          std::span<SampleHit> hits, int threads, const RigidTransform& pose,
-                          const Vec3& centre, double lever, double coverage, double tolerance,
-                          const BandOf& band_of) {
+Settling Settle(const Target& target, std::span<const Vec3> points,
+                std::span<const std::uint8_t> state, std::span<SampleCaches> caches,
+                std::span<SampleHit> hits, int threads, const RigidTransform& pose,
+                const Vec3& centre, double lever, double coverage, double tolerance,
+                const BandOf& band_of) {
+  int in_band = 0, on_one_line = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const SurfaceHit& hit = hits[i].hit;
+    if (!hits[i].covered || hit.distance > band_of(hit) || !(hit.normal.squaredNorm() > 0.0)) {
+      continue;
+    }
+    ++in_band;
+    on_one_line += hit.settle_normal.has_value();
+  }
+  Settling settling;
+  settling.one_scan_lines_corrected =
+      on_one_line > 0 && on_one_line <= kMaxOneScanLineShare * in_band;
   RigidTransform current = pose;
   for (int step_index = 0; step_index < kSettleSteps; ++step_index) {
     Matrix6 normal_matrix = Matrix6::Zero();
@@ -276,11 +312,13 @@ double SettleDisplacement(const Target& target, std::span<const Vec3> points,
       const Vec3& x = hits[i].x;
       const SurfaceHit& hit = hits[i].hit;
       if (hit.distance > band_of(hit) || !(hit.normal.squaredNorm() > 0.0)) continue;
+      const bool corrected = settling.one_scan_lines_corrected && hit.settle_normal;
+      const Vec3& normal = corrected ? *hit.settle_normal : hit.normal;
       Vector6 j;
-      j.head<3>() = (x - centre).cross(hit.normal) / lever;
-      j.tail<3>() = hit.normal;
+      j.head<3>() = (x - centre).cross(normal) / lever;
+      j.tail<3>() = normal;
       normal_matrix.noalias() += j * j.transpose();
-      gradient += j * hit.across;
+      gradient += j * (corrected ? hit.settle_across : hit.across);
       ++used;
     }
     if (used < 12) break;
@@ -299,7 +337,9 @@ double SettleDisplacement(const Target& target, std::span<const Vec3> points,
     sum += (current * points[i] - pose * points[i]).squaredNorm();
     ++count;
   }
-  return count > 0 ? std::sqrt(sum / count) : 0.0;
+  settling.displacement = count > 0 ? std::sqrt(sum / count) : 0.0;
+  settling.pose = current.matrix();
+  return settling;
 }
 
 // The angle between a sample's normal and the target's where it lands beyond which the sample is
@@ -539,9 +579,11 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   score.coherent_residual = shared.coherent;
   if (score.inliers > 0) {
     const double noise_sigma = score.inlier_distance / options.band_per_noise;
-    score.settle_displacement = SettleDisplacement(
-        target, points, state, caches, hits, threads, pose, centre, lever, coverage,
-        std::max(options.settle_tolerance_sigmas * noise_sigma, 1e-9 * lever), band_of);
+    const Settling settling =
+        Settle(target, points, state, caches, hits, threads, pose, centre, lever, coverage,
+               std::max(options.settle_tolerance_sigmas * noise_sigma, 1e-9 * lever), band_of);
+    score.settle_displacement = settling.displacement;
+    if (settling.one_scan_lines_corrected) score.settled_pose = settling.pose;
   }
   // Pass 3: how precisely the agreeing samples fix each direction of motion. The point-to-plane
   // information of a set of samples along a direction (the sum of (J . axis)^2, rotations in

@@ -12,8 +12,8 @@
 //     Patches are fitted with the anchors (PatchFitting::kAll) or when a query first needs them
 //     (kOnFirstUse: a registration touches the patches near its source only); the values are the
 //     same either way.
-//   - a support that spans a surface (SupportGrowth::kAcrossScanLines, for a scan whose
-//     sampling shows its sensor): where the samples within r lie along one line (one ring of a
+//   - a support that spans a surface (for a scan whose sampling shows its sensor: Build's
+//     `scan_sensor`): where the samples within r lie along one line (one ring of a
 //     LiDAR scan far from the sensor, whose rings lie metres apart there while the samples on a
 //     ring are centimetres apart), the plane through them may tilt freely about the line, and
 //     the patch would be anyone's guess. Such a patch is fitted again with a support
@@ -24,6 +24,15 @@
 //     patch whose support is still a line is a failed fit. Object scans keep the paper's
 //     support: the Stanford scanner's lines triggered the growth at the scans' sparse borders,
 //     and MLS-SICP on bunny 090 -> 180 then ended 6.5 d off.
+//   - a support on one scan line (a scan's patches): a ring that crosses a corner, or bends
+//     round a pole or a car, spans a plane, so its support does not grow, but that plane is the
+//     beam's cone through the ring, whatever the surface does above and below it (at 25-60 m
+//     from a 16-beam sensor a façade's patch then lies flat). Such a patch says so: a projection
+//     that blends one has MlsProjection::one_scan_line set, and the verification measures its
+//     sample across a plane fitted over several rings instead. A support holds one scan line when
+//     the directions from the sensor to its samples spread across their line by less than
+//     kOneScanLineSpreadPerStep of the sensor's angular step (the scan's own resolution: beams
+//     lie farther apart than the returns along them, so two rings spread at least half a step).
 // A query q is projected vertically onto each of the k patches whose anchors lie nearest to a
 // point near q (first q itself, then q's first estimate on the surface; a warm start supplies a
 // point already on it), and the k surface points and normals are blended with Wendland weights
@@ -52,13 +61,9 @@
 #include "mlsreg/geometry/kd_tree.h"
 #include "mlsreg/geometry/mls_projector.h"
 #include "mlsreg/geometry/neighbor_cache.h"
+#include "mlsreg/geometry/sensor_view.h"
 
 namespace mlsreg {
-
-// Whether a patch whose support lies along one line grows until it spans a surface (see above):
-// for a scan whose sampling shows a scanning sensor (CloudScales::sensor), whose scan lines lie
-// farther apart than its samples along them. An object scan keeps the paper's support.
-enum class SupportGrowth : std::uint8_t { kNone, kAcrossScanLines };
 
 // When the patches are fitted: all with the anchors, or each when a query first needs it.
 enum class PatchFitting : std::uint8_t { kAll, kOnFirstUse };
@@ -77,6 +82,9 @@ class MlsPatches {
   static constexpr double kMinSupportSpread = 0.1;
   static constexpr double kSupportGrowth = 1.5;
   static constexpr int kMaxSupportGrowthSteps = 3;
+  // A support lies on one scan line when its samples' directions from the sensor spread across
+  // the line by less than this share of the sensor's angular step (RMS; see above).
+  static constexpr double kOneScanLineSpreadPerStep = 0.5;
 
   // The anchors nearest a query's last blend point, kept for its next projection (see above).
   // Starts empty; owned by the caller, one per query, used by one thread at a time.
@@ -92,6 +100,9 @@ class MlsPatches {
 
   // `points` and `tree` must outlive the patches; `mls` and `viewpoint` (output normals point
   // toward it; without one their sign is arbitrary but consistent per query) as for MlsProjector.
+  // `scan_sensor`: the sensor of a scan whose sampling shows one (CloudScales::sensor), whose
+  // scan lines lie farther apart than its samples along them: supports grow across the lines,
+  // and patches on one line say so (see above). An object scan (none) keeps the paper's support.
   // With kAll: CANCELLED when `should_stop` says stop, FAILED_PRECONDITION when no anchor could
   // be fitted. With kOnFirstUse such anchors fail their queries instead (kTooFewNeighbors).
   static absl::StatusOr<MlsPatches> Build(const std::vector<Vec3>& points, const KdTree& tree,
@@ -99,7 +110,7 @@ class MlsPatches {
                                           const std::optional<Vec3>& viewpoint,
                                           PatchFitting fitting, int threads,
                                           const StopCheck& should_stop = {},
-                                          SupportGrowth growth = SupportGrowth::kNone);
+                                          const std::optional<SensorFinding>& scan_sensor = {});
 
   // The MLS projection of `query`. With `seed_far_queries`, a query farther than r from every
   // anchor is replaced by its nearest target sample (seeded_from_nearest_sample); otherwise it
@@ -138,6 +149,7 @@ class MlsPatches {
     Vec3 origin, u, v, n;                 // the reference plane, (u, v, n) right-handed
     std::array<double, 10> coefficients;  // HeightField monomials over (x, y) / r, heights / r
     double surface_variation;
+    bool one_scan_line;  // its support lies on one scan line of scan_sensor_ (see above)
   };
   // A patch's state: not yet fitted, being fitted by one thread, fitted, or its fit failed.
   enum State : std::uint8_t { kUnfitted, kFitting, kFitted, kFailed };
@@ -151,7 +163,7 @@ class MlsPatches {
   };
 
   MlsPatches(const std::vector<Vec3>& points, const KdTree& tree, const MlsOptions& mls,
-             const std::optional<Vec3>& viewpoint, SupportGrowth growth);
+             const std::optional<Vec3>& viewpoint, const std::optional<SensorFinding>& scan_sensor);
   // The patch of `fit`, made at the support radius growth * r, in units of r.
   static Patch PatchOf(const MlsLocalFit& fit, double growth);
   // Algorithm 1 from anchor `i`; false when it fails.
@@ -168,7 +180,7 @@ class MlsPatches {
   const std::vector<Vec3>* points_;
   const KdTree* tree_;
   MlsOptions mls_;
-  SupportGrowth growth_ = SupportGrowth::kNone;
+  std::optional<SensorFinding> scan_sensor_;
   // The exact Algorithm 1 that fits the patches, at r and at each grown support.
   std::vector<std::unique_ptr<MlsProjector>> projectors_;
   // Written once per patch, by the thread that moved its state from kUnfitted to kFitting;

@@ -55,6 +55,8 @@ struct MlsProjection {
   // True when the query was too far from the target and the iteration started from its nearest
   // sample (MlsOptions::seed_far_queries_from_nearest_sample).
   bool seeded_from_nearest_sample = false;
+  // MLS patches of a scan: a blended patch's support lies on one scan line (MlsPatches).
+  bool one_scan_line = false;
 };
 
 // One step of Algorithm 1 at an iterate s (lines 4-9): the Wendland-weighted reference plane

@@ -89,10 +89,9 @@ class Target {
   double sampling_distance() const { return sampling_distance_; }
   // How the cloud is sampled: spacing percentiles, extent, the working voxel.
   const CloudScales& scales() const { return scales_; }
-  // How its MLS patches' supports grow: across the scan lines where its sampling shows a sensor.
-  SupportGrowth support_growth() const {
-    return scales_.sensor ? SupportGrowth::kAcrossScanLines : SupportGrowth::kNone;
-  }
+  // The scan's sensor when its sampling shows one (scales().sensor): its MLS patches' supports
+  // grow across the scan lines, and say when they hold one line (MlsPatches).
+  const std::optional<SensorFinding>& scan_sensor() const { return scales_.sensor; }
   // The cloud at its working voxel (scales().working_voxel), with normals and an index.
   const VoxelCloud& voxel_cloud() const { return voxel_cloud_; }
   // What the scan's sensor saw, when the sampling shows a sensor (scales().sensor), else null.

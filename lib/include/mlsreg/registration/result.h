@@ -145,6 +145,9 @@ struct AutoReport {
   // found, or none was searched for (the result did not verify, or every direction of motion is
   // fixed by a large share of the overlap).
   std::optional<int> rival;
+  // The transform is where the verification's settling took a `pulled` result, which verified
+  // there (a scan's last step; the trace ends at the pulled pose).
+  bool polished_by_settling = false;
 };
 
 // The lengths a registration worked at, all chosen from the data (absolute units, those of the

@@ -175,6 +175,9 @@ struct VerificationScore {
   // The RMS distance the inliers travel when the pose settles where the data put it (a few
   // point-to-plane steps on the target's surface).
   double settle_displacement = 0.0;
+  // Where that settling stopped, when it measured samples on one scan line of a scan along their
+  // voxels' normals (a sparse sensor's far façades); unset otherwise.
+  std::optional<Matrix4> settled_pose;
   // The residuals' part that neighbouring inliers share (absolute; the square root of the mean
   // product of neighbours' signed residuals): about 0 for noise.
   double coherent_residual = 0.0;
