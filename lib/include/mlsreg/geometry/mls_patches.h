@@ -28,9 +28,10 @@
 //     round a pole or a car, spans a plane, so its support does not grow, but that plane is the
 //     beam's cone through the ring, whatever the surface does above and below it (at 25-60 m
 //     from a 16-beam sensor a façade's patch then lies flat). Such a patch says so: a projection
-//     that blends one has MlsProjection::one_scan_line set, and the verification measures its
-//     sample across a plane fitted over several rings instead. A support holds one scan line when
-//     the directions from the sensor to its samples spread across their line by less than
+//     that blends one has MlsProjection::one_scan_line set, and the verification's settling
+//     measures its sample along its voxel's normal instead, whose samples span several rings
+//     (where such samples are a minority: registration/verification.cc). A support holds one scan
+//     line when the directions from the sensor to its samples spread across their line by less than
 //     kOneScanLineSpreadPerStep of the sensor's angular step (the scan's own resolution: beams
 //     lie farther apart than the returns along them, so two rings spread at least half a step).
 // A query q is projected vertically onto each of the k patches whose anchors lie nearest to a
