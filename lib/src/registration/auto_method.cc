@@ -454,13 +454,14 @@ class AutoRegistration {
   }
 
   // A `pulled` result of a scan (a target whose sampling shows its sensor) replaced by the pose
-  // its verification's settling stopped at, when that pose verifies (and survives the rival
-  // search). The settling is point-to-plane on the MLS patches over the verification's samples
-  // (one per working voxel), with the normals of samples on one scan line corrected; on 16-beam
-  // scans it lands nearer the truth than the finish, which no change to the finish tried reached
-  // (docs/scenes.md, "The settling as the last step"). Only a small step: at most
-  // kSettlePolishMaxBands bands, as a pulled pose is one small rigid motion short of the data's
-  // optimum; a longer settling (an open road, nothing fixing the slide along it) is left pulled.
+  // its verification's settling stopped at, when that pose verifies (then the rival search runs
+  // as for any verified result, and a rival makes it `ambiguous`). The settling is point-to-plane
+  // on the MLS patches over the verification's samples (one per working voxel), with the normals of
+  // samples on one scan line corrected; on 16-beam scans it lands nearer the truth than the finish,
+  // which no change to the finish tried reached (docs/scenes.md, "The settling as the last step").
+  // Only a small step: at most kSettlePolishMaxBands bands, as a pulled pose is one small rigid
+  // motion short of the data's optimum; a longer settling (an open road, nothing fixing the slide
+  // along it) is left pulled.
   void PolishBySettling(RegistrationResult& result) {
     if (!target_.scan_sensor() || report_.candidates.empty() ||
         best_score_.verdict != Verdict::kPulled || !best_score_.settled_pose ||
