@@ -19,8 +19,11 @@ nlohmann::json MatrixJson(const Matrix4& m) {
 }
 
 // Which finish polished auto's result and why (registration/finish.h); `verified`: the
-// result's verdict; d: the target's.
-std::string FinishLine(const FinishReport& f, bool verified, double d) {
+// result's verdict; `settled`: the result is a pulled pose's settled pose; d: the target's.
+std::string FinishLine(const FinishReport& f, bool verified, bool settled, double d) {
+  if (f.kind == FinishKind::kNone && settled) {
+    return "auto finish: none (the settled pose verified: the settling was the last step)\n";
+  }
   if (f.kind == FinishKind::kNone) {
     // Only a result that neither verified nor was pulled skips an enabled finish.
     return verified ? "auto finish: none (switched off)\n"
@@ -165,7 +168,7 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
           : a->rival && static_cast<int>(k) == *a->rival ? "  <- rival: explains as much elsewhere"
                                                          : "");
     }
-    out += FinishLine(a->finish, a->verified, result.sampling_distance);
+    out += FinishLine(a->finish, a->verified, a->polished_by_settling, result.sampling_distance);
   }
   if (result.rival && result.verification) {
     out += FormatRival(*result.rival, *result.verification, result.transform);

@@ -282,6 +282,7 @@ struct Settling {
   double displacement = 0.0;  // RMS, of the inliers at the pose
   Matrix4 pose = Matrix4::Identity();
   bool one_scan_lines_corrected = false;  // samples on one scan line took their voxel's normal
+  double one_scan_line_share = 0.0;       // of the in-band samples at the pose
 };
 template <typename BandOf>
 Settling Settle(const Target& target, std::span<const Vec3> points,
@@ -299,8 +300,9 @@ Settling Settle(const Target& target, std::span<const Vec3> points,
     on_one_line += hit.settle_normal.has_value();
   }
   Settling settling;
+  settling.one_scan_line_share = in_band > 0 ? static_cast<double>(on_one_line) / in_band : 0.0;
   settling.one_scan_lines_corrected =
-      on_one_line > 0 && on_one_line <= kMaxOneScanLineShare * in_band;
+      on_one_line > 0 && settling.one_scan_line_share <= kMaxOneScanLineShare;
   RigidTransform current = pose;
   for (int step_index = 0; step_index < kSettleSteps; ++step_index) {
     Matrix6 normal_matrix = Matrix6::Zero();
@@ -583,6 +585,7 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
         Settle(target, points, state, caches, hits, threads, pose, centre, lever, coverage,
                std::max(options.settle_tolerance_sigmas * noise_sigma, 1e-9 * lever), band_of);
     score.settle_displacement = settling.displacement;
+    score.one_scan_line_share = settling.one_scan_line_share;
     if (settling.one_scan_lines_corrected) score.settled_pose = settling.pose;
   }
   // Pass 3: how precisely the agreeing samples fix each direction of motion. The point-to-plane

@@ -178,6 +178,8 @@ struct VerificationScore {
   // Where that settling stopped, when it measured samples on one scan line of a scan along their
   // voxels' normals (a sparse sensor's far façades); unset otherwise.
   std::optional<Matrix4> settled_pose;
+  // The share of the settling's in-band samples that lie on one scan line (0 without a sensor).
+  double one_scan_line_share = 0.0;
   // The residuals' part that neighbouring inliers share (absolute; the square root of the mean
   // product of neighbours' signed residuals): about 0 for noise.
   double coherent_residual = 0.0;
