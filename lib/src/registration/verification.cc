@@ -290,14 +290,16 @@ Settling Settle(const Target& target, std::span<const Vec3> points,
                 std::span<SampleHit> hits, int threads, const RigidTransform& pose,
                 const Vec3& centre, double lever, double coverage, double tolerance,
                 const BandOf& band_of) {
+  // A sample the settling steps on: covered, within its band, with a surface normal.
+  const auto settles = [&](const SampleHit& sample) {
+    return sample.covered && sample.hit.distance <= band_of(sample.hit) &&
+           sample.hit.normal.squaredNorm() > 0.0;
+  };
   int in_band = 0, on_one_line = 0;
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    const SurfaceHit& hit = hits[i].hit;
-    if (!hits[i].covered || hit.distance > band_of(hit) || !(hit.normal.squaredNorm() > 0.0)) {
-      continue;
-    }
+  for (const SampleHit& sample : hits) {
+    if (!settles(sample)) continue;
     ++in_band;
-    on_one_line += hit.settle_normal.has_value();
+    on_one_line += sample.hit.settle_normal.has_value();
   }
   Settling settling;
   settling.one_scan_line_share = in_band > 0 ? static_cast<double>(on_one_line) / in_band : 0.0;
@@ -309,11 +311,10 @@ Settling Settle(const Target& target, std::span<const Vec3> points,
     Vector6 gradient = Vector6::Zero();
     int used = 0;
     if (step_index > 0) HitSamples(target, points, current, coverage, caches, hits, threads);
-    for (std::size_t i = 0; i < points.size(); ++i) {
-      if (!hits[i].covered) continue;
-      const Vec3& x = hits[i].x;
-      const SurfaceHit& hit = hits[i].hit;
-      if (hit.distance > band_of(hit) || !(hit.normal.squaredNorm() > 0.0)) continue;
+    for (const SampleHit& sample : hits) {
+      if (!settles(sample)) continue;
+      const Vec3& x = sample.x;
+      const SurfaceHit& hit = sample.hit;
       const bool corrected = settling.one_scan_lines_corrected && hit.settle_normal;
       const Vec3& normal = corrected ? *hit.settle_normal : hit.normal;
       Vector6 j;
