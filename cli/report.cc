@@ -147,8 +147,7 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
     out += absl::StrFormat(
         "auto: candidate %d of %zu chosen%s%s\n", a->chosen, a->candidates.size(),
         a->early_exit ? " (the start verified: no global stage)" : "",
-        a->polished_by_settling ? "; pulled, then moved where the verification's settling put it"
-                                : "");
+        a->polished_by_settling ? "; then moved where the verification's settling put it" : "");
     out += absl::StrFormat(
         "auto stages: start %.3f s, global %.3f s (%d feature matches), candidates %.3f s, final "
         "%.3f s, rival search %.3f s\n",

@@ -16,7 +16,9 @@
 //   4. A verified result, or one the data pull a little further (`pulled`), is polished over
 //      every source point by the finish the clouds' noise chooses (registration/finish.h):
 //      plane-to-plane on clean data, MLS on noisy data. The polished pose is kept when it
-//      verifies.
+//      verifies. On a scan whose samples on one scan line the verification's settling corrects,
+//      a pulled start settles before stage 2 and the settling replaces the finish
+//      (SettleStart, SettlingIsLastStep).
 //   5. A verified result that only a small share of the overlap fixes along one direction (a
 //      corridor, whose doors and pillars may repeat) is searched for a rival: the voxel clouds
 //      aligned again from the result moved along that direction. A rival, another pose that
@@ -50,8 +52,9 @@ constexpr double kAliasMargin = 0.05;
 // takes as the last step. 16-beam tuning scans from the prior settle 0.5-4 bands toward the
 // truth; an open road's pose that settled 9 bands along the road verified 0.55 m off.
 constexpr double kSettlePolishMaxBands = 5.0;
-// A settled start with at least this share of its in-band samples on one scan line is returned
-// without the finish. Tuning scans from the prior: 16-beam streets 0.059-0.115, where the finish
+// Where at least this share of a verified pose's in-band samples lie on one scan line (and the
+// settling corrected them), the settling is the last step instead of the finish
+// (SettlingIsLastStep). Tuning scans from the prior: 16-beam streets 0.059-0.115, where the finish
 // moved every settled pose (right, 0.003-0.04 m off) 0.9-5.5 bands and did not verify; 64-beam
 // corridors and open roads at 1 cm 0.001-0.027, where the finish verified the right poses
 // nearer the truth (0.021 -> 0.004 m) and refused two settled poses 0.41 and 1.25 m off.
@@ -106,15 +109,9 @@ class AutoRegistration {
                                   start.iterations, *std::move(coarse_score), Seconds(phase)});
     report_.timings.start = Seconds(phase);
     best_score_ = report_.candidates[0].score;
-    // The settled start needs no global stage. Where few of its samples lie on one scan line the
-    // finish polishes it and judges it as it judges any verified start (below); where more do,
-    // the settling is the last step, as the finish, which does not correct those samples, lands
-    // farther from the truth (docs/scenes.md, "The settled start").
-    const bool settled_start = report_.polished_by_settling;
-    if (settled_start && best_score_.one_scan_line_share >= kSettledOverFinishShare) {
-      report_.early_exit = true;
-      return SearchRivalThenFinish(std::move(start));
-    }
+    // A settled start needs no global stage: the finish polishes and judges it below as any
+    // verified start, or where the settling is the last step (SettlingIsLastStep) the settling
+    // has done so (docs/scenes.md, "The settled start").
     // A verified start whose weakest direction few samples fix (SearchesForRival) may be an alias
     // farther along it than the rival search looks. Where the target's sensor is known, the
     // verification's seen-through test judges such a slide: the source's cars and poles stand
@@ -132,7 +129,7 @@ class AutoRegistration {
       // the global stage found the right pose).
       if (!report_.finish.contradicted) {
         report_.early_exit = true;
-        report_.polished_by_settling = settled_start && !report_.finish.kept;
+        if (report_.finish.kept) report_.polished_by_settling = false;
         return SearchRivalThenFinish(*std::move(polished));
       }
       report_.candidates[0].score = best_score_;  // now pulled
@@ -392,9 +389,14 @@ class AutoRegistration {
 
   // The finish of Polish, without the rival search: `result` with the finish's phase appended
   // when its pose is kept (best_score_ and report_.finish updated), else `result` as it was
-  // (best_score_ `pulled` when the finish contradicted it); cancelled when the finish was.
+  // (best_score_ `pulled` when the finish contradicted it); cancelled when the finish was. A
+  // verified result whose settling is the last step (SettlingIsLastStep) takes its settled pose
+  // instead when that verifies, and no finish runs.
   absl::StatusOr<RegistrationResult> ApplyFinish(RegistrationResult result) {
     if (!params_.finish || !FinishPolishes(best_score_.verdict)) return result;
+    if (best_score_.verified() && SettlingIsLastStep(best_score_) && SettleVerified(result)) {
+      return result;
+    }
     const Clock::time_point phase = Clock::now();
     FinishReport& finish = report_.finish;
     finish.noise_d = problem_.noise_d;
@@ -505,6 +507,26 @@ class AutoRegistration {
     start.transform = *score.settled_pose;
     score = *std::move(settled);
     report_.polished_by_settling = true;
+  }
+
+  // Whether the settling of `score` is the last step rather than the finish: it corrected the
+  // samples on one scan line (its settled pose is known), and they are at least
+  // kSettledOverFinishShare of its in-band samples. The finish does not correct them, and on
+  // 16-beam streets it lands farther from the truth (docs/scenes.md, "The settled start").
+  static bool SettlingIsLastStep(const VerificationScore& score) {
+    return score.settled_pose && score.one_scan_line_share >= kSettledOverFinishShare;
+  }
+
+  // A verified `result` (best_score_ its score) moved to its settled pose when that verifies in
+  // turn (or already there: a settled start); false when the settled pose does not verify.
+  bool SettleVerified(RegistrationResult& result) {
+    if (report_.polished_by_settling) return true;
+    VerificationScore score = Verify(*best_score_.settled_pose);
+    if (!score.verified()) return false;
+    result.transform = *best_score_.settled_pose;
+    best_score_ = std::move(score);
+    report_.polished_by_settling = true;
+    return true;
   }
 
   // A `pulled` result replaced by its settled pose when that verifies (SettledScore); the rival

@@ -145,8 +145,10 @@ struct AutoReport {
   // found, or none was searched for (the result did not verify, or every direction of motion is
   // fixed by a large share of the overlap).
   std::optional<int> rival;
-  // The transform is where the verification's settling took a `pulled` result, which verified
-  // there (a scan's last step; the trace ends at the pulled pose).
+  // The transform is where the verification's settling took the result, which verified there:
+  // a `pulled` result of a scan, or a verified one where the settling is the last step instead of
+  // the finish (samples on one scan line; docs/scenes.md, "The settled start"). The trace ends at
+  // the pose before the settling.
   bool polished_by_settling = false;
 };
 
