@@ -19,7 +19,8 @@ nlohmann::json MatrixJson(const Matrix4& m) {
 }
 
 // Which finish polished auto's result and why (registration/finish.h); `verified`: the
-// result's verdict; `settled`: the result is a pulled pose's settled pose; d: the target's.
+// result's verdict; `settled`: the result is where the verification's settling put it
+// (AutoReport::polished_by_settling); d: the target's.
 std::string FinishLine(const FinishReport& f, bool verified, bool settled, double d) {
   if (f.kind == FinishKind::kNone && settled) {
     return "auto finish: none (the settled pose verified: the settling was the last step)\n";

@@ -112,6 +112,7 @@ class AutoRegistration {
     // A settled start needs no global stage: the finish polishes and judges it below as any
     // verified start, or where the settling is the last step (SettlingIsLastStep) the settling
     // has done so (docs/scenes.md, "The settled start").
+    //
     // A verified start whose weakest direction few samples fix (SearchesForRival) may be an alias
     // farther along it than the rival search looks. Where the target's sensor is known, the
     // verification's seen-through test judges such a slide: the source's cars and poles stand
@@ -498,8 +499,8 @@ class AutoRegistration {
 
   // A pulled start (`score` its verification) moved to its settled pose when that pose verifies
   // over enough of the source (Acceptable) and the target's sensor is known, as it judges a slide
-  // along the weakest direction (see Run). 16-beam streets from the prior: the start is always
-  // pulled, its settled pose right, and the global stage that followed took 70 % of the time.
+  // along the weakest direction (see Run). 16-beam streets from the prior: most starts are
+  // pulled, their settled poses right, and the global stage that followed took 70 % of the time.
   void SettleStart(RegistrationResult& start, VerificationScore& score) {
     if (target_.sensor_view() == nullptr || Acceptable(score)) return;
     std::optional<VerificationScore> settled = SettledScore(score);
