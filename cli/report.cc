@@ -102,10 +102,12 @@ std::string FormatRival(const AutoCandidate& rival, const VerificationScore& sco
   const double angle_deg =
       std::acos(std::clamp((turn.trace() - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / M_PI;
   const double shift = (rival.refined.col(3) - result.col(3)).head<3>().norm();
-  const double share = score.inliers > 0 ? double(rival.score.inliers) / score.inliers : 0.0;
+  const double explained = score.visible_explained_fraction();
+  const double share = explained > 0.0 ? rival.score.visible_explained_fraction() / explained : 0.0;
   return absl::StrFormat(
-      "rival: a pose %.4g away (turned %.3g deg) explains %.1f %% as many samples: the data do "
-      "not tell the two poses apart (weakest direction: %s)\n",
+      "rival: a pose %.4g away (turned %.3g deg) explains %.1f %% as large a share of what the "
+      "target's sensor could see of the source: the data do not tell the two poses apart "
+      "(weakest direction: %s)\n",
       shift, angle_deg, 100.0 * share, score.WorstDirectionText());
 }
 

@@ -26,8 +26,8 @@ std::string FormatResult(const RegistrationResult& result, const std::optional<P
                          int max_iterations);
 // One line: the verdict and its evidence.
 std::string FormatVerification(const VerificationScore& score);
-// "rival: a pose 0.93 away (turned 0.04 deg) explains 97.1 % as many samples: ..." for the rival
-// of `result` (scored `score`).
+// "rival: a pose 0.93 away (turned 0.04 deg) explains 97.1 % as large a share of ...: ..." for
+// the rival of `result` (scored `score`).
 std::string FormatRival(const AutoCandidate& rival, const VerificationScore& score,
                         const Matrix4& result);
 nlohmann::json RivalJson(const AutoCandidate& rival);

@@ -224,6 +224,13 @@ struct VerificationScore {
   double visible_covered_fraction() const {
     return samples > hidden ? double(covered) / (samples - hidden) : 0.0;
   }
+  // inliers / (samples - hidden): the share of what the target's sensor could see of the source
+  // that the pose explains (explained_fraction when no sensor is known). A pose slid along a
+  // street or a corridor moves samples beyond the target's range or above its top beam, where no
+  // pose could explain them; this share does not count them against it.
+  double visible_explained_fraction() const {
+    return samples > hidden ? double(inliers) / (samples - hidden) : 0.0;
+  }
   // seen_through / (samples - hidden): the share of what the target's sensor could judge that it
   // saw through.
   double seen_through_fraction() const {
