@@ -9,6 +9,9 @@
 # VLP-16's layout: about 27k points per scan; rings decimetres to metres apart), range noise
 # 0.03 m only (the VLP-16's stated accuracy):
 #   TUNING16  street seed 201     HELD-OUT16  street seeds 301-302
+# And a 32-beam sensor (an HDL-32E's span, +10.67 to -30.67 degrees, at 0.16 degrees: about 57k
+# points per scan), range noise 0.02 m, held out only:
+#   HELD-OUT32  street seeds 401-402, corridor seed 401
 #
 #   bash scripts/lidar-scenes.sh
 #
@@ -31,6 +34,8 @@ hdl64e=(--beam-layout hdl64e --azimuth-step 0.17 --noise-m 0.01,0.03 --pair-gaps
         --pairs 16)
 vlp16=(--beams 16 --top-elevation 15 --bottom-elevation -15 --azimuth-step 0.2 --noise-m 0.03
        --pair-gaps 4,8,12 --pairs 16)
+hdl32=(--beams 32 --top-elevation 10.67 --bottom-elevation -30.67 --azimuth-step 0.16
+       --noise-m 0.02 --pair-gaps 4,8,12 --pairs 16)
 sensor=("${hdl64e[@]}")
 movers_for() { case $1 in street) echo 10 ;; corridor) echo 6 ;; open_road) echo 4 ;; esac; }
 
@@ -52,7 +57,7 @@ generate() {
     "$SCAN" --lidar --scene "$kind" --scene-seed "$seed" --movers "$(movers_for "$kind")" \
       "${sensor[@]}" --out "$dir" | tee -a "$dir/scan.log" | grep -v '^  '
   done
-  for sigma in 0.01 0.03; do
+  for sigma in 0.01 0.02 0.03; do
     if ls "$dir"/*/noise$sigma/pairs.csv > /dev/null 2>&1; then
       ls "$dir"/*/noise$sigma/pairs.csv > "$dir/manifests_noise$sigma.txt"
     fi
@@ -67,4 +72,6 @@ generate heldout street:101 street:102 street:103 street:104 open_road:101 corri
 sensor=("${vlp16[@]}")
 generate tuning16 street:201
 generate heldout16 street:301 street:302
-du -sh "$OUT/tuning" "$OUT/heldout" "$OUT/tuning16" "$OUT/heldout16"
+sensor=("${hdl32[@]}")
+generate heldout32 street:401 street:402 corridor:401
+du -sh "$OUT/tuning" "$OUT/heldout" "$OUT/tuning16" "$OUT/heldout16" "$OUT/heldout32"
