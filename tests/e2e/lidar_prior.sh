@@ -43,6 +43,12 @@
 #     and the rival search's probe 2.6 m further verified too but was no rival, as it explained
 #     91 % as many samples: the rest had slid out of the target's sight. Judged on what the
 #     target's sensor could see, it explains 98 % as large a share, and the pose is ambiguous;
+#   - corridor 702 with 20 moving cars and people at 2 cm (traffic), from the prior (ambiguous):
+#     no truth of this corridor verifies. 120 -> 115: a pose 0.6 m along the corridor verified;
+#     its worst direction was a roll about the corridor's axis, whose probes all came back, and
+#     the slide was not probed. 35 -> 24: a pose 1.4 m along it, matched to the traffic,
+#     verified; its probe near the truth explained 10 % more but was only seen through (the
+#     traffic had moved), and was no rival;
 #   - street 201 with 16 beams (SENSOR vlp16) at 3 cm, 26 -> 18 from the identity: the MLS
 #     patches fitted planes through single rings, and the pose ended 7 m off; with supports that
 #     grow across the rings it is right (and `pulled`: docs/scenes.md, "A sparse sensor").

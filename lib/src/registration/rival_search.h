@@ -1,11 +1,14 @@
 // The rival search: whether another pose along a verified result's weakest direction explains
 // the source as well (a corridor whose doors and pillars repeat). The data of such a scene fix
 // the pose only up to the repeats, and no test at the returned pose tells it from its alias: only
-// finding the other pose can. The result is moved along its weakest direction by one and two
-// final capture ranges of the coarse alignment (2 and 4 working voxels) both ways, the voxel
-// clouds are aligned again from there and each probe is verified. A probe that verifies, is only
-// pulled or fails only on its weakest direction, explains nearly as many samples, and ends
-// clearly elsewhere is a rival, and the result is `ambiguous` (docs/verification.md, "Rivals").
+// finding the other pose can. The result is moved along its weakest direction (and, when that is
+// a rotation, along its weakest translation too: a corridor's slide) by one and two final capture
+// ranges of the coarse alignment (2 and 4 working voxels) both ways, the voxel clouds are aligned
+// again from there and each probe is verified. A probe that verifies, is only pulled, fails only
+// on its weakest direction or is only seen through (what it lays where the target's beams passed
+// may have moved: traffic), explains nearly as much of what the target's sensor could see, and
+// ends clearly elsewhere is a rival, and the result is `ambiguous` (docs/verification.md,
+// "Rivals").
 #pragma once
 
 #include <functional>
@@ -20,7 +23,8 @@ namespace mlsreg::internal {
 
 // Whether a verified `score` rests on so little information along its weakest direction that
 // a rival is searched for: worst_direction_strength (about the share of the overlap's surface
-// that faces the direction) under 0.02. Corridors carry 0.0015-0.0092 and the open road
+// that faces the direction) under 0.02, or, where that direction is a rotation, the weakest
+// translation's strength under 0.02. Corridors carry 0.0015-0.0092 and the open road
 // 0.0009-0.0037 at their verified results, streets 0.003-0.12 (56 % of them are searched, none
 // had a rival) and KITTI 0.035-0.082.
 bool SearchesForRival(const VerificationScore& score);

@@ -668,6 +668,14 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
     score.worst_direction_error = worst_along.error;
     const AlongAxis covered = along(axis, false);
     score.worst_direction_strength = covered.strength / score.covered;
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> translations(
+        agreeing_information.bottomRightCorner<3, 3>());
+    if (translations.info() == Eigen::Success) {
+      score.weakest_translation = translations.eigenvectors().col(0);
+      Vector6 slide = Vector6::Zero();
+      slide.tail<3>() = score.weakest_translation;
+      score.weakest_translation_strength = along(slide, false).strength / score.covered;
+    }
     if (!worst_along.fixed) {
       direction = covered.fixed ? DirectionCheck::kDisagrees : DirectionCheck::kUnconstrained;
     }
@@ -745,7 +753,12 @@ VerificationScore VerifyPose(const Target& target, const PointCloud& source,
 
 Matrix4 MovedAlongWorstDirection(const VerificationScore& score, const Matrix4& transform,
                                  double distance) {
-  const Vector6 step = distance * score.worst_direction.normalized();
+  return MovedAlong(score, score.worst_direction, transform, distance);
+}
+
+Matrix4 MovedAlong(const VerificationScore& score, const Vector6& direction,
+                   const Matrix4& transform, double distance) {
+  const Vector6 step = distance * direction.normalized();
   const Vec3 omega = step.head<3>() / score.direction_lever;
   Matrix4 motion = Matrix4::Identity();
   if (omega.norm() > 0.0) {

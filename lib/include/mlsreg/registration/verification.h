@@ -193,6 +193,12 @@ struct VerificationScore {
   int worst_direction_samples = 0;
   double worst_direction_fraction = 0.0;
   Eigen::Matrix<double, 6, 1> worst_direction = Eigen::Matrix<double, 6, 1>::Zero();
+  // The translation the agreeing samples fix least (unit; the least eigenvector of their
+  // information's translation block) and the covered samples' information along it per covered
+  // sample (as worst_direction_strength): a slide along a corridor or a road, which the worst
+  // direction need not be (a roll about the corridor's axis can be weaker still).
+  Vec3 weakest_translation = Vec3::Zero();
+  double weakest_translation_strength = 0.0;
   // The frame of worst_direction: the covered samples' centre (in the target's frame) and their
   // RMS distance from it (the lever that turns a rotation into a displacement).
   Vec3 direction_centre = Vec3::Zero();
@@ -307,6 +313,9 @@ VerificationScore VerifyPose(const Target& target, const PointCloud& source,
 // `transform` followed by a motion along `score`'s worst direction that moves the covered samples
 // by about `distance` (a translation moves each by exactly that; a rotation about the samples'
 // centre moves them by that at their RMS radius).
+// The same along `direction` (rotation scaled by the lever, then translation) in `score`'s frame.
+Matrix4 MovedAlong(const VerificationScore& score, const Eigen::Matrix<double, 6, 1>& direction,
+                   const Matrix4& transform, double distance);
 Matrix4 MovedAlongWorstDirection(const VerificationScore& score, const Matrix4& transform,
                                  double distance);
 
