@@ -34,6 +34,8 @@ void ToProto(const VerificationScore& s, v1::VerificationScore* out) {
   out->set_worst_direction_samples(s.worst_direction_samples);
   out->set_worst_direction_strength(s.worst_direction_strength);
   out->set_worst_direction_error(s.worst_direction_error);
+  for (int k = 0; k < 3; ++k) out->add_weakest_translation(s.weakest_translation[k]);
+  out->set_weakest_translation_strength(s.weakest_translation_strength);
   out->set_residual_scale(s.residual_scale);
   out->set_pull_fraction(s.pull_fraction);
   out->set_pull_rotation_deg(s.pull_rotation_deg);
@@ -76,6 +78,10 @@ VerificationScore FromProto(const v1::VerificationScore& p) {
   s.worst_direction_samples = p.worst_direction_samples();
   s.worst_direction_strength = p.worst_direction_strength();
   s.worst_direction_error = p.worst_direction_error();
+  for (int k = 0; k < 3 && k < p.weakest_translation_size(); ++k) {
+    s.weakest_translation[k] = p.weakest_translation(k);
+  }
+  s.weakest_translation_strength = p.weakest_translation_strength();
   s.residual_scale = p.residual_scale();
   s.pull_fraction = p.pull_fraction();
   s.pull_rotation_deg = p.pull_rotation_deg();

@@ -66,6 +66,9 @@ py::dict ScoreToPython(const VerificationScore& s) {
       py::arg("worst_direction_samples") = s.worst_direction_samples,
       py::arg("worst_direction_strength") = s.worst_direction_strength,
       py::arg("worst_direction_error") = s.worst_direction_error,
+      py::arg("weakest_translation") = py::make_tuple(
+          s.weakest_translation.x(), s.weakest_translation.y(), s.weakest_translation.z()),
+      py::arg("weakest_translation_strength") = s.weakest_translation_strength,
       py::arg("residual_scale") = s.residual_scale, py::arg("pull_fraction") = s.pull_fraction,
       py::arg("pull_rotation_deg") = s.pull_rotation_deg,
       py::arg("pull_translation") = s.pull_translation,

@@ -85,6 +85,20 @@ TEST(ResultCodecTest, TheSensorAndTheHiddenSamplesCrossTheWire) {
   EXPECT_DOUBLE_EQ(back.verification->visible_covered_fraction(), 3012.0 / (5280 - 2136));
 }
 
+// The weakest translation the rival search probes crosses the wire with its strength.
+TEST(ResultCodecTest, TheWeakestTranslationCrossesTheWire) {
+  RegistrationResult result;
+  result.verification = VerificationScore{};
+  result.verification->weakest_translation = Vec3(0.6, -0.8, 0.0);
+  result.verification->weakest_translation_strength = 0.0116;
+  v1::Result proto;
+  wire::ToProto(result, &proto);
+  const RegistrationResult back = wire::FromProto(proto);
+  ASSERT_TRUE(back.verification.has_value());
+  EXPECT_EQ(back.verification->weakest_translation, Vec3(0.6, -0.8, 0.0));
+  EXPECT_DOUBLE_EQ(back.verification->weakest_translation_strength, 0.0116);
+}
+
 // The pose covariance crosses the wire entry for entry (row-major), with its extent; a score
 // without one (a direction without evidence) has none after the trip.
 TEST(ResultCodecTest, ThePoseCovarianceCrossesTheWire) {

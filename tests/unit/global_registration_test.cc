@@ -645,6 +645,20 @@ TEST(AutoMethodTest, APoseAmongRepeatedPillarsHasARivalAndIsAmbiguous) {
   EXPECT_EQ(result->verification->verdict, Verdict::kAmbiguous);
 }
 
+// The verdict names the translation its agreeing samples fix least: along a corridor, where only
+// the pillars' faces fix it (the rival search probes it where the worst direction is a rotation).
+TEST(VerificationTest, TheWeakestTranslationRunsAlongACorridor) {
+  std::vector<double> pillars;
+  for (double x = -18.0; x <= 18.0; x += 2.0) pillars.push_back(x);
+  auto target = Target::Build(Corridor(pillars, 20.0, 0.01, 1)).value();
+  const VerificationScore score =
+      VerifyPose(*target, Corridor(pillars, 15.0, 0.01, 2), Matrix4::Identity());
+  EXPECT_NEAR(score.weakest_translation.norm(), 1.0, 1e-9);
+  EXPECT_GT(std::abs(score.weakest_translation.x()), 0.95) << score.weakest_translation;
+  EXPECT_GT(score.weakest_translation_strength, 0.0);
+  EXPECT_LT(score.weakest_translation_strength, 0.02);
+}
+
 // Every method's verdict searches for a rival as auto's does: MLS-SICP and G-ICP from the truth
 // among repeated pillars end there, verify on their own, and are ambiguous; the probes stream
 // as stage `rival`.
