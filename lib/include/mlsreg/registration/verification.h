@@ -313,11 +313,12 @@ VerificationScore VerifyPose(const Target& target, const PointCloud& source,
 // `transform` followed by a motion along `score`'s worst direction that moves the covered samples
 // by about `distance` (a translation moves each by exactly that; a rotation about the samples'
 // centre moves them by that at their RMS radius).
-// The same along `direction` (rotation scaled by the lever, then translation) in `score`'s frame.
-Matrix4 MovedAlong(const VerificationScore& score, const Eigen::Matrix<double, 6, 1>& direction,
-                   const Matrix4& transform, double distance);
 Matrix4 MovedAlongWorstDirection(const VerificationScore& score, const Matrix4& transform,
                                  double distance);
+// The same along `direction` (rotation scaled by the lever, then translation, as worst_direction)
+// in `score`'s frame: the rival search also probes the weakest translation.
+Matrix4 MovedAlong(const VerificationScore& score, const Eigen::Matrix<double, 6, 1>& direction,
+                   const Matrix4& transform, double distance);
 
 // A verified `score` whose pose a longer settling than its own (method auto's finish, over every
 // source point) moved by `displacement`, to a pose that did not verify: the settling says where
