@@ -21,15 +21,14 @@ CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree,
                           const std::optional<Vec3>& viewpoint, int threads) {
   CloudScales scales;
   if (points.empty()) return scales;
-  std::vector<std::uint32_t> all(points.size());
-  std::iota(all.begin(), all.end(), 0u);
-  const std::vector<double> nearest = NearestDistinctDistances(points, tree, all, threads);
-  const double d = MeanFoundDistance(nearest);  // = SamplingDistance(points, tree)
-  scales.mean_spacing = d;
+  // One seeded sample gives every spacing: at 20,000 points the mean's relative standard error
+  // is under 1 % even for a LiDAR scan's wide spread of spacings, and a 120k-point scan's
+  // nearest-neighbour searches take a sixth of the time of all of them.
   const std::vector<std::uint32_t> sample =
       RandomSubsample(points.size(), kSpacingSamples, kSpacingSeed);
-  std::vector<double> sampled(sample.size());
-  for (std::size_t k = 0; k < sample.size(); ++k) sampled[k] = nearest[sample[k]];
+  const std::vector<double> sampled = NearestDistinctDistances(points, tree, sample, threads);
+  const double d = MeanFoundDistance(sampled);
+  scales.mean_spacing = d;
   scales.sensor = FindSensor(points, sample, sampled, viewpoint.value_or(Vec3::Zero()));
   std::vector<double> spacing;
   spacing.reserve(sample.size());

@@ -19,7 +19,7 @@ inline constexpr double kWorkingVoxelPerExtent = 0.01;
 inline constexpr double kMinWorkingVoxelPerSpacing = 2.0;
 
 struct CloudScales {
-  double mean_spacing = 0.0;    // d: mean nearest-neighbour distance (paper Eq. 11)
+  double mean_spacing = 0.0;    // d: mean nearest-neighbour distance (paper Eq. 11), sampled
   double median_spacing = 0.0;  // of the nearest-neighbour distances
   double spacing_p90 = 0.0;     // 90th percentile: the sparse regions
   // Twice the 95th percentile of the distances from the component-wise median point: the size of
@@ -30,11 +30,11 @@ struct CloudScales {
   std::optional<SensorFinding> sensor;
 };
 
-// Measures the scales of `points` (indexed by `tree`): every point's nearest distinct neighbour
-// once, their mean the mean spacing (the same value as SamplingDistance), the percentiles from
-// a seeded sample of at most 20,000 of them (the same for any `threads`), and from the same sample
-// the sensor, looked for at `viewpoint` (the origin when none is known). A cloud with no two
-// distinct points has mean spacing 0.
+// Measures the scales of `points` (indexed by `tree`) from the nearest distinct neighbours of a
+// seeded sample of at most 20,000 of them (every point of a smaller cloud; the same for any
+// `threads`): their mean the mean spacing (SamplingDistance's value up to the sampling: exactly
+// it up to 20,000 points), their percentiles, and the sensor, looked for at `viewpoint` (the
+// origin when none is known). A cloud with no two distinct points has mean spacing 0.
 CloudScales MeasureScales(const std::vector<Vec3>& points, const KdTree& tree,
                           const std::optional<Vec3>& viewpoint = std::nullopt, int threads = 1);
 
