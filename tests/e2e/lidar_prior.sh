@@ -10,7 +10,9 @@
 # START: `prior` (default) or `identity` (no prior: the registration starts at the identity).
 # SENSOR: `hdl64e` (default: 64 beams, 0.17 degree steps), `vlp16` (16 beams 2 degrees apart,
 # 0.2 degree steps: rings decimetres to metres apart, as scripts/lidar-scenes.sh's 16-beam sets)
-# or `hdl32` (32 beams from +10.67 to -30.67 degrees, 0.16 degree steps: an HDL-32E's span).
+# or `hdl32` (32 beams from +10.67 to -30.67 degrees, 0.16 degree steps: an HDL-32E's span), or
+# `tls` (a dense scanner on a tripod: 150 beams from +45 to -45 degrees, 0.4 degree steps, 1.5 m
+# above the ground, no car).
 # PYTHON: an interpreter with numpy. The cases (tests/CMakeLists.txt):
 #   - open_road 1, 34 -> 31: nothing fixes the pose along the road, so nothing verifies; the
 #     start's MLS-SICP refinement slid 1.5 km off the road from a voxel alignment 0.2 m from the
@@ -49,6 +51,10 @@
 #     the slide was not probed. 35 -> 24: a pose 1.4 m along it, matched to the traffic,
 #     verified; its probe near the truth explained 10 % more but was only seen through (the
 #     traffic had moved), and was no rival;
+#   - corridor 901 scanned by a dense tripod scanner (SENSOR tls) at 5 mm, 161 -> 149 from the
+#     identity (ambiguous): a global candidate 6.5 m along the corridor verified; the rival
+#     search's probes 1 and 2 capture ranges away came back, and only one 4 ranges away (3.9 m)
+#     shows a pose that explains as much;
 #   - street 201 with 16 beams (SENSOR vlp16) at 3 cm, 26 -> 18 from the identity: the MLS
 #     patches fitted planes through single rings, and the pose ended 7 m off; with supports that
 #     grow across the rings it is right (and `pulled`: docs/scenes.md, "A sparse sensor").
@@ -73,6 +79,8 @@ case $SENSOR in
   hdl64e) sensor=(--beam-layout hdl64e --azimuth-step 0.17) ;;
   vlp16) sensor=(--beams 16 --top-elevation 15 --bottom-elevation -15 --azimuth-step 0.2) ;;
   hdl32) sensor=(--beams 32 --top-elevation 10.67 --bottom-elevation -30.67 --azimuth-step 0.16) ;;
+  tls) sensor=(--beams 150 --top-elevation 45 --bottom-elevation -45 --azimuth-step 0.4
+               --sensor-height 1.5 --no-ego-body) ;;
   *) fail "unknown SENSOR $SENSOR" ;;
 esac
 "$SCAN" --lidar --scene "$KIND" --scene-seed "$SEED" --movers "$MOVERS" "${sensor[@]}" \

@@ -458,9 +458,13 @@ class AutoRegistration {
   }
 
   // The rival search around the verified `pose` (best_score_ its score): its probes join the
-  // candidates, and a rival makes the verdict `ambiguous`. False when cancelled.
+  // candidates, and a rival makes the verdict `ambiguous`. It reaches farther for a pose the
+  // global stage found (RivalReach). False when cancelled.
   bool SearchRivalOf(const Matrix4& pose) {
     const int first = static_cast<int>(report_.candidates.size());
+    const bool found_globally =
+        report_.chosen < first &&
+        report_.candidates[report_.chosen].origin == CandidateOrigin::kGlobal;
     RivalSearch search = SearchRival(
         pose, best_score_, source_voxels_, target_.voxel_cloud().voxel,
         [&](const Matrix4& from, int k) {
@@ -468,7 +472,8 @@ class AutoRegistration {
         },
         [&](const Matrix4& probe, const VerificationOptions& options) {
           return Verify(probe, options);
-        });
+        },
+        found_globally ? RivalReach::kFar : RivalReach::kNear);
     for (AutoCandidate& probe : search.probes) report_.candidates.push_back(std::move(probe));
     report_.timings.rivals += search.seconds;
     if (search.cancelled) return false;

@@ -14,6 +14,8 @@ constexpr double kRivalMaxStrength = 0.02;
 // capture range alone would find 8 of the 15 verified aliases of the tuning corridors, all four
 // 14.
 constexpr double kRivalProbeCaptures[] = {-1.0, 1.0, -2.0, 2.0};
+// RivalReach::kFar adds these, after the near ones of the same direction.
+constexpr double kFarRivalProbeCaptures[] = {-4.0, 4.0, -8.0, 8.0};
 // A rival ends more than this many verification bands from the result (the RMS displacement of
 // the source's voxel samples), even after its own settling is taken off...
 constexpr double kRivalDistinctBands = 1.5;
@@ -74,7 +76,7 @@ bool SearchesForRival(const VerificationScore& score) {
 RivalSearch SearchRival(const Matrix4& result, const VerificationScore& score,
                         const VoxelCloud& source_voxels, double working_voxel,
                         const std::function<RegistrationResult(const Matrix4&, int)>& align,
-                        const VerifyWith& verify) {
+                        const VerifyWith& verify, RivalReach reach) {
   const Clock::time_point start = Clock::now();
   RivalSearch search;
   VerificationOptions probe_options;
@@ -90,8 +92,14 @@ RivalSearch SearchRival(const Matrix4& result, const VerificationScore& score,
     slide.tail<3>() = score.weakest_translation;
     directions.push_back(slide);
   }
+  std::vector<double> probe_captures(std::begin(kRivalProbeCaptures),
+                                     std::end(kRivalProbeCaptures));
+  if (reach == RivalReach::kFar) {
+    probe_captures.insert(probe_captures.end(), std::begin(kFarRivalProbeCaptures),
+                          std::end(kFarRivalProbeCaptures));
+  }
   for (const Vector6& direction : directions) {
-    for (const double captures : kRivalProbeCaptures) {
+    for (const double captures : probe_captures) {
       if (search.rival || search.cancelled) break;
       const Clock::time_point t = Clock::now();
       const int k = static_cast<int>(search.probes.size());

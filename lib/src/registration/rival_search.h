@@ -36,14 +36,26 @@ struct RivalSearch {
   double seconds = 0.0;
 };
 
+// How far the probes reach along the weakest direction, in final capture ranges of the coarse
+// alignment, both ways.
+enum class RivalReach {
+  kNear,  // 1 and 2: a result aligned from the caller's start
+  // Also 4 and 8: a result the global stage found, which can be any alias along the direction.
+  // A corridor scanned densely (150 beams over +-45 degrees, 5 mm noise), from the identity: a
+  // global candidate 6.5 m along the corridor verified, its near probes all came back, and the
+  // probe 4 ranges (3.9 m) away explained 96 % as much.
+  kFar,
+};
+
 // Searches for a rival of `result`, verified with `score` on `source_voxels` (the source's voxel
-// cloud at the target's working voxel). `align(from, k)` aligns the voxel clouds from `from`
-// (the k-th probe); `verify(pose, options)` scores a pose as `score` was scored, with `options`.
+// cloud at the target's working voxel), as far as `reach`. `align(from, k)` aligns the voxel clouds
+// from `from` (the k-th probe); `verify(pose, options)` scores a pose as `score` was scored, with
+// `options`.
 using VerifyWith =
     std::function<VerificationScore(const Matrix4&, const VerificationOptions& options)>;
 RivalSearch SearchRival(const Matrix4& result, const VerificationScore& score,
                         const VoxelCloud& source_voxels, double working_voxel,
                         const std::function<RegistrationResult(const Matrix4&, int)>& align,
-                        const VerifyWith& verify);
+                        const VerifyWith& verify, RivalReach reach = RivalReach::kNear);
 
 }  // namespace mlsreg::internal
