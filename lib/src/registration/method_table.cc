@@ -33,7 +33,7 @@ const std::array<MethodSpec, 9> kMethods = {{
      &RunGeneralizedIcp},
     {Method::kFgr, "fgr", "FGR", "Fast Global Registration with FPFH (ignores the start pose)",
      TargetRequirement::kAnyCloud, kCommonParameters | kFgrParameters, nullptr,
-     &RunFastGlobalRegistration},
+     &RunFastGlobalRegistration, StartUse::kIgnores},
     {Method::kRcBl, "rc-bl", "RC_BL", "reverse calibration, bilinear (organised target)",
      TargetRequirement::kOrganised, kSicpMethod, &MakeBilinearFinder, &RunSparseIcp},
     {Method::kRcP, "rc-p", "RC_P", "reverse calibration, Phong tessellation (organised target)",

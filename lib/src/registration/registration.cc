@@ -102,9 +102,10 @@ namespace {
 
 // The verdict on a method's result as method auto gives its own: the source's voxel samples at
 // the target's working voxel scored, and a verified pose that few samples fix along one
-// direction searched for a rival (rival_search.h). A stop asked for during the search cancels
-// the result (no verdict).
-void VerifyWithRivalSearch(const RegistrationProblem& problem, RegistrationResult& result) {
+// direction searched for a rival (rival_search.h) as far as `reach`. A stop asked for during the
+// search cancels the result (no verdict).
+void VerifyWithRivalSearch(const RegistrationProblem& problem, RegistrationResult& result,
+                           internal::RivalReach reach) {
   const Target& target = *problem.target;
   VoxelCloud samples = BuildVoxelCloud(problem.source->points, target.voxel_cloud().voxel,
                                        problem.source->viewpoint, problem.threads);
@@ -134,7 +135,7 @@ void VerifyWithRivalSearch(const RegistrationProblem& problem, RegistrationResul
           internal::Stamp(probe, Stage::kRival, k);
           return probe;
         },
-        verify);
+        verify, reach);
     if (search.cancelled) {
       result.termination = Termination::kCancelled;
       result.converged = false;
@@ -163,7 +164,8 @@ PoseVerdict VerifyPoseSearchingRivals(const Target& target, const PointCloud& so
   problem.source_sensor = measured.sensor;
   RegistrationResult result;
   result.transform = problem.initial;
-  VerifyWithRivalSearch(problem, result);
+  // A pose from anywhere: it may be an alias of the truth far along its weakest direction.
+  VerifyWithRivalSearch(problem, result, internal::RivalReach::kFar);
   return {*std::move(result.verification), std::move(result.rival)};
 }
 
@@ -260,7 +262,9 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
       result->verification = report->verification;
       if (report->rival) result->rival = report->candidates[*report->rival];
     } else {
-      VerifyWithRivalSearch(problem, *result);
+      VerifyWithRivalSearch(problem, *result,
+                            method.start_use == StartUse::kIgnores ? internal::RivalReach::kFar
+                                                                   : internal::RivalReach::kNear);
     }
     if (result->verification) {
       result->scales.verification_band = result->verification->inlier_distance;

@@ -64,6 +64,12 @@ struct RegistrationOptions;
 struct RegistrationProblem;  // lib/src/registration/method_runners.h
 struct RegistrationResult;
 
+// What a method does with the caller's start pose.
+enum class StartUse {
+  kRefines,  // aligns from it (every ICP method; auto runs its own global stage when it must)
+  kIgnores,  // searches globally (FGR): its result may be any alias of the truth
+};
+
 struct MethodSpec {
   Method method;
   std::string_view name;         // "mls-sicp": CLI, reports, CSV columns
@@ -75,6 +81,8 @@ struct MethodSpec {
   std::unique_ptr<CorrespondenceFinder> (*make_finder)(const Target& target,
                                                        const RegistrationOptions& options);
   absl::StatusOr<RegistrationResult> (*run)(const RegistrationProblem& problem);
+  // Sets how far the rival search of the method's verdict reaches (rival_search.h).
+  StartUse start_use = StartUse::kRefines;
 };
 
 // Every method, in the order of the paper's tables.

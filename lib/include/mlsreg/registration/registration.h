@@ -32,7 +32,8 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
 // The verdict Register gives a result of any method, for a pose given by the caller: `transform`
 // (source -> target) scored on the source's voxel samples (VerifyPose, the source's noise
 // estimated) and, when it verifies on little information along its weakest direction, searched
-// for a rival (the verdict is then `ambiguous`; docs/verification.md, "Rivals").
+// for a rival (the verdict is then `ambiguous`; docs/verification.md, "Rivals") as far as the
+// rivals of a global stage's result: the pose may come from anywhere.
 struct PoseVerdict {
   VerificationScore score;
   std::optional<AutoCandidate> rival;
