@@ -40,7 +40,8 @@ struct RivalSearch {
 // alignment, both ways.
 enum class RivalReach {
   kNear,  // 1 and 2: a result aligned from the caller's start
-  // Also 4 and 8: a result the global stage found, which can be any alias along the direction.
+  // Also 4 and 8: a pose that may come from anywhere (a result of auto's global stage or of FGR,
+  // a pose given to verify), which can be any alias along the direction.
   // A corridor scanned densely (150 beams over +-45 degrees, 5 mm noise), from the identity: a
   // global candidate 6.5 m along the corridor verified, its near probes all came back, and the
   // probe 4 ranges (3.9 m) away explained 96 % as much.
