@@ -99,7 +99,9 @@ absl::StatusOr<MlsPatches> MlsPatches::Build(const std::vector<Vec3>& points, co
     patches.anchors_.push_back(points[i]);
   }
   const std::size_t count = patches.anchors_.size();
-  patches.patches_.resize(count);
+  // Default-initialised: a patch's memory is first written when it is fitted, so the pages of
+  // patches no query needs are never touched (a one-shot registration fits a fraction of them).
+  patches.patches_.reset(new Patch[count]);
   patches.states_ = std::make_unique<std::atomic<std::uint8_t>[]>(count);
   for (std::size_t i = 0; i < count; ++i) patches.states_[i].store(kUnfitted);
   patches.anchor_tree_ = std::make_unique<KdTree>(patches.anchors_, threads);
@@ -183,7 +185,7 @@ bool MlsPatches::PatchAt(std::size_t i, Patch& out) const {
 
 std::size_t MlsPatches::fitted() const {
   std::size_t n = 0;
-  for (std::size_t i = 0; i < patches_.size(); ++i) {
+  for (std::size_t i = 0; i < size(); ++i) {
     const std::uint8_t s = states_[i].load(std::memory_order_relaxed);
     n += s == kFitted || s == kFailed;
   }
@@ -300,7 +302,7 @@ MlsProjection MlsPatches::ProjectNear(const Vec3& query, const Vec3& near, bool 
 }
 
 std::size_t MlsPatches::MemoryBytes() const {
-  return patches_.capacity() * (sizeof(Patch) + sizeof(std::atomic<std::uint8_t>)) +
+  return size() * (sizeof(Patch) + sizeof(std::atomic<std::uint8_t>)) +
          anchors_.capacity() * sizeof(Vec3) + projectors_.size() * sizeof(MlsProjector) +
          (anchor_tree_ ? anchor_tree_->MemoryBytes() : 0);
 }

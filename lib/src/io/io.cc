@@ -9,6 +9,7 @@
 #include <cctype>
 #include <cerrno>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <system_error>
@@ -73,6 +74,11 @@ absl::StatusOr<std::string> ReadFileBytes(const std::string& path) {
   FilePtr file(std::fopen(path.c_str(), "rb"));
   if (file == nullptr) return FileError(errno, "open", path);
   std::string bytes;
+  // Room for the whole file at once (its size is only a hint: it may change while we read), so
+  // that the string is not reallocated and copied as it grows.
+  std::error_code size_error;
+  const std::uintmax_t size = std::filesystem::file_size(path, size_error);
+  if (!size_error && size <= bytes.max_size()) bytes.reserve(static_cast<std::size_t>(size));
   char buffer[1 << 16];
   std::size_t read = 0;
   while ((read = std::fread(buffer, 1, sizeof(buffer), file.get())) > 0) bytes.append(buffer, read);

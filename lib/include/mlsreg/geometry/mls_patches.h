@@ -135,7 +135,7 @@ class MlsPatches {
   int polynomial_degree() const { return mls_.polynomial_degree; }
   const MlsOptions& mls_options() const { return mls_; }
   // Anchors (patches, fitted or not).
-  std::size_t size() const { return patches_.size(); }
+  std::size_t size() const { return anchors_.size(); }
   // Patches fitted so far (including anchors whose fit failed).
   std::size_t fitted() const;
   // Bytes held: every anchor's patch storage, whether fitted or not, so the count never grows.
@@ -184,9 +184,9 @@ class MlsPatches {
   std::optional<SensorFinding> scan_sensor_;
   // The exact Algorithm 1 that fits the patches, at r and at each grown support.
   std::vector<std::unique_ptr<MlsProjector>> projectors_;
-  // Written once per patch, by the thread that moved its state from kUnfitted to kFitting;
-  // read only after its state is kFitted (acquire).
-  mutable std::vector<Patch> patches_;
+  // One per anchor. Written once per patch, by the thread that moved its state from kUnfitted
+  // to kFitting; read only after its state is kFitted (acquire).
+  mutable std::unique_ptr<Patch[]> patches_;
   std::unique_ptr<std::atomic<std::uint8_t>[]> states_;
   std::vector<Vec3> anchors_;  // the anchor samples, indexed by anchor_tree_
   std::unique_ptr<KdTree> anchor_tree_;
