@@ -4,8 +4,8 @@
 #include <cmath>
 #include <numeric>
 #include <random>
-#include <unordered_map>
 
+#include "absl/container/flat_hash_map.h"
 #include "mlsreg/core/parallel_for.h"
 #include "voxel_key.h"
 
@@ -88,7 +88,7 @@ std::vector<std::uint32_t> RandomSubsample(std::size_t size, std::size_t count,
 }
 
 std::vector<std::uint32_t> VoxelRepresentatives(const std::vector<Vec3>& points, double h) {
-  std::unordered_map<internal::VoxelKey, CellRepresentative, internal::VoxelKeyHash> cells;
+  absl::flat_hash_map<internal::VoxelKey, CellRepresentative, internal::VoxelKeyHash> cells;
   cells.reserve(points.size() / 4 + 1);
   const double inv_h = 1.0 / h;
   for (std::uint32_t i = 0; i < points.size(); ++i) {

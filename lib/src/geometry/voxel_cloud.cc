@@ -1,8 +1,8 @@
 #include "mlsreg/geometry/voxel_cloud.h"
 
 #include <algorithm>
-#include <unordered_map>
 
+#include "absl/container/flat_hash_map.h"
 #include "mlsreg/core/parallel_for.h"
 #include "mlsreg/geometry/weighted_covariance.h"
 #include "voxel_key.h"
@@ -26,7 +26,7 @@ struct VoxelMoments {
 };
 
 VoxelMoments Accumulate(const std::vector<Vec3>& points, double voxel, bool with_scatter) {
-  std::unordered_map<internal::VoxelKey, std::uint32_t, internal::VoxelKeyHash> slot;
+  absl::flat_hash_map<internal::VoxelKey, std::uint32_t, internal::VoxelKeyHash> slot;
   slot.reserve(points.size() / 4 + 1);
   VoxelMoments m;
   std::vector<Vec3> sums;
