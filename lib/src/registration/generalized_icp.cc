@@ -142,40 +142,34 @@ class GicpStep final : public internal::IcpStep {
         }
       }
     });
-    // Each pair's verdict, information matrix and terms of the normal equations, in parallel.
+    // Each pair's verdict and terms of the normal equations, summed in sample order: the same
+    // for any thread count. On one thread each pair's terms are added as they are made; on more,
+    // they are made in parallel, kept per pair, and added in the same order.
     const Eigen::Matrix3d r = pose.linear();
-    ParallelFor(n, threads_, [&](std::size_t begin, std::size_t end, int) {
-      for (std::size_t i = begin; i < end; ++i) {
-        Judge(i, r);
-        Pair& pair = pairs_[i];
-        if (pair.verdict != Verdict::kMatched) continue;
-        const Vec3& x = pair.moved;
-        const Vec3 e = target_points[pair.target] - x;  // residual after x' = exp(delta) x
-        Eigen::Matrix<double, 3, 6> jacobian;           // de/d(omega, v) = [ [x]x, -I ]
-        jacobian.leftCols<3>() = Skew(x);
-        jacobian.rightCols<3>() = -Eigen::Matrix3d::Identity();
-        pair.hessian.noalias() = jacobian.transpose() * pair.information * jacobian;
-        pair.gradient.noalias() = jacobian.transpose() * pair.information * e;
-        pair.residual_squared = e.squaredNorm();
-      }
-    });
-    // The normal equations, summed in sample order: the same for any thread count.
     h_.setZero();
     g_.setZero();
     double sum_squared = 0.0;
-    for (const Pair& pair : pairs_) {
-      if (pair.verdict == Verdict::kInvalid) {
+    const auto add = [&](Verdict verdict, const PairTerms& terms) {
+      if (verdict == Verdict::kInvalid) {
         ++report.counts.invalid;
-        continue;
-      }
-      if (pair.verdict == Verdict::kTooFar) {
+      } else if (verdict == Verdict::kTooFar) {
         ++report.counts.rejected_distance;
-        continue;
+      } else {
+        h_ += terms.hessian;
+        g_ += terms.gradient;
+        sum_squared += terms.residual_squared;
+        ++report.counts.matched;
       }
-      h_ += pair.hessian;
-      g_ += pair.gradient;
-      sum_squared += pair.residual_squared;
-      ++report.counts.matched;
+    };
+    if (threads_ <= 1) {
+      PairTerms terms;
+      for (std::size_t i = 0; i < n; ++i) add(Judge(i, r, terms), terms);
+    } else {
+      if (terms_.size() != n) terms_.resize(n);
+      ParallelFor(n, threads_, [&](std::size_t begin, std::size_t end, int) {
+        for (std::size_t i = begin; i < end; ++i) pairs_[i].verdict = Judge(i, r, terms_[i]);
+      });
+      for (std::size_t i = 0; i < n; ++i) add(pairs_[i].verdict, terms_[i]);
     }
     internal::SetRmse(report, sum_squared, target_.sampling_distance());
     return true;
@@ -199,31 +193,37 @@ class GicpStep final : public internal::IcpStep {
     std::uint32_t target = 0;
     double distance_squared = 0.0;
     Verdict verdict = Verdict::kInvalid;
-    Eigen::Matrix3d information;  // the inverse of the pair's combined covariance (matched)
-    // Matched: its terms of the normal equations, J^T information J and J^T information e, and
-    // its squared residual.
+  };
+  // A matched pair's terms of the normal equations, J^T information J and J^T information e
+  // (information: the inverse of the pair's combined covariance), and its squared residual.
+  struct PairTerms {
     Matrix6 hessian;
     Vector6 gradient;
     double residual_squared = 0.0;
   };
 
-  // Sample i's verdict and, when matched, its information matrix (r: the pose's rotation).
-  void Judge(std::size_t i, const Eigen::Matrix3d& r) {
-    Pair& pair = pairs_[i];
-    pair.verdict = Verdict::kInvalid;
-    if (!source_ok_[i]) return;
+  // Sample i's verdict and, when matched, its terms into `terms` (r: the pose's rotation).
+  Verdict Judge(std::size_t i, const Eigen::Matrix3d& r, PairTerms& terms) const {
+    const Pair& pair = pairs_[i];
+    if (!source_ok_[i]) return Verdict::kInvalid;
     if (max_distance_squared_ > 0.0 && pair.distance_squared > max_distance_squared_) {
-      pair.verdict = Verdict::kTooFar;
-      return;
+      return Verdict::kTooFar;
     }
-    if (target_state_[pair.target] != kGood) return;
+    if (target_state_[pair.target] != kGood) return Verdict::kInvalid;
     if (max_distance_squared_ == 0.0 && pair.distance_squared > target_gate_squared_[pair.target]) {
-      pair.verdict = Verdict::kTooFar;
-      return;
+      return Verdict::kTooFar;
     }
     const Eigen::Matrix3d combined = target_cov_[pair.target] + r * source_cov_[i] * r.transpose();
-    pair.information = combined.inverse();
-    pair.verdict = Verdict::kMatched;
+    const Eigen::Matrix3d information = combined.inverse();
+    const Vec3& x = pair.moved;
+    const Vec3 e = target_.points()[pair.target] - x;  // residual after x' = exp(delta) x
+    Eigen::Matrix<double, 3, 6> jacobian;              // de/d(omega, v) = [ [x]x, -I ]
+    jacobian.leftCols<3>() = Skew(x);
+    jacobian.rightCols<3>() = -Eigen::Matrix3d::Identity();
+    terms.hessian.noalias() = jacobian.transpose() * information * jacobian;
+    terms.gradient.noalias() = jacobian.transpose() * information * e;
+    terms.residual_squared = e.squaredNorm();
+    return Verdict::kMatched;
   }
 
   const Target& target_;
@@ -233,6 +233,7 @@ class GicpStep final : public internal::IcpStep {
   std::vector<Eigen::Matrix3d> source_cov_;
   std::vector<std::uint8_t> source_ok_;
   std::vector<Pair> pairs_;
+  std::vector<PairTerms> terms_;                  // per pair, on more than one thread
   std::vector<NeighborCache<8>> nearest_caches_;  // per sample, the target points near it
   std::vector<Eigen::Matrix3d> target_cov_;
   std::vector<double> target_gate_squared_;  // each target point's neighbourhood radius, squared
