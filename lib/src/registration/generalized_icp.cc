@@ -86,9 +86,7 @@ class GicpStep final : public internal::IcpStep {
         source_ok_(samples_.size()),
         pairs_(samples_.size()),
         nearest_caches_(samples_.size()),
-        target_cov_(target.points().size()),
-        target_gate_squared_(target.points().size()),
-        target_state_(target.points().size(), kUnknown),
+        target_slot_(target.points().size(), kUnknown),
         max_distance_squared_(max_distance > 0.0 ? max_distance * max_distance : 0.0) {
     ParallelFor(samples_.size(), threads_, [&](std::size_t begin, std::size_t end, int) {
       for (std::size_t i = begin; i < end; ++i) {
@@ -117,29 +115,33 @@ class GicpStep final : public internal::IcpStep {
       }
     });
     // Target covariances are computed the first time a point is matched (by a pair that the
-    // distance cap keeps), each once.
+    // distance cap keeps), each once, into the next slot of the target planes.
     new_targets_.clear();
     for (std::size_t i = 0; i < n; ++i) {
       const std::uint32_t t = pairs_[i].target;
-      if (!source_ok_[i] || target_state_[t] != kUnknown) continue;
+      if (!source_ok_[i] || target_slot_[t] != kUnknown) continue;
       if (max_distance_squared_ > 0.0 && pairs_[i].distance_squared > max_distance_squared_) {
         continue;
       }
-      target_state_[t] = kPending;
+      target_slot_[t] = kPending;
       new_targets_.push_back(t);
     }
+    const std::size_t first_slot = target_planes_.size();
+    target_planes_.resize(first_slot + new_targets_.size());
     ParallelFor(new_targets_.size(), threads_, [&](std::size_t begin, std::size_t end, int) {
       for (std::size_t k = begin; k < end; ++k) {
         const std::uint32_t t = new_targets_[k];
         const std::optional<LocalPlane> plane =
             PlaneCovariance(target_points, target_.tree(), target_points[t],
                             params_.covariance_neighbors, params_.epsilon);
-        target_state_[t] = plane ? kGood : kBad;
-        if (plane) {
-          target_cov_[t] = plane->covariance;
-          target_gate_squared_[t] =
-              kGatePerNeighbourhood * kGatePerNeighbourhood * plane->radius_squared;
+        if (!plane) {
+          target_slot_[t] = kBad;
+          continue;
         }
+        const std::size_t slot = first_slot + k;
+        target_planes_[slot] = {plane->covariance, kGatePerNeighbourhood * kGatePerNeighbourhood *
+                                                       plane->radius_squared};
+        target_slot_[t] = static_cast<std::int32_t>(slot);
       }
     });
     // Each pair's verdict and terms of the normal equations, summed in sample order: the same
@@ -185,7 +187,14 @@ class GicpStep final : public internal::IcpStep {
   std::span<const Vec3> samples() const override { return samples_; }
 
  private:
-  enum TargetState : std::int8_t { kUnknown, kPending, kBad, kGood };
+  // A target point's slot in target_planes_, or what it is without one.
+  enum TargetSlot : std::int32_t { kUnknown = -1, kPending = -2, kBad = -3 };
+  // A matched target point's covariance and neighbourhood gate (its neighbourhood's radius,
+  // squared, times kGatePerNeighbourhood squared).
+  struct TargetPlane {
+    Eigen::Matrix3d covariance;
+    double gate_squared = 0.0;
+  };
   enum class Verdict : std::uint8_t { kInvalid, kTooFar, kMatched };
   // One sample's pair in the current iteration.
   struct Pair {
@@ -209,11 +218,13 @@ class GicpStep final : public internal::IcpStep {
     if (max_distance_squared_ > 0.0 && pair.distance_squared > max_distance_squared_) {
       return Verdict::kTooFar;
     }
-    if (target_state_[pair.target] != kGood) return Verdict::kInvalid;
-    if (max_distance_squared_ == 0.0 && pair.distance_squared > target_gate_squared_[pair.target]) {
+    const std::int32_t slot = target_slot_[pair.target];
+    if (slot < 0) return Verdict::kInvalid;
+    const TargetPlane& plane = target_planes_[static_cast<std::size_t>(slot)];
+    if (max_distance_squared_ == 0.0 && pair.distance_squared > plane.gate_squared) {
       return Verdict::kTooFar;
     }
-    const Eigen::Matrix3d combined = target_cov_[pair.target] + r * source_cov_[i] * r.transpose();
+    const Eigen::Matrix3d combined = plane.covariance + r * source_cov_[i] * r.transpose();
     const Eigen::Matrix3d information = combined.inverse();
     const Vec3& x = pair.moved;
     const Vec3 e = target_.points()[pair.target] - x;  // residual after x' = exp(delta) x
@@ -235,10 +246,12 @@ class GicpStep final : public internal::IcpStep {
   std::vector<Pair> pairs_;
   std::vector<PairTerms> terms_;                  // per pair, on more than one thread
   std::vector<NeighborCache<8>> nearest_caches_;  // per sample, the target points near it
-  std::vector<Eigen::Matrix3d> target_cov_;
-  std::vector<double> target_gate_squared_;  // each target point's neighbourhood radius, squared
-  std::vector<std::int8_t> target_state_;    // TargetState
-  std::vector<std::uint32_t> new_targets_;   // target points first matched this iteration
+  // Per target point its TargetSlot; per matched one its plane, in the order first matched (a
+  // registration meets a fraction of the target: dense slots keep the pages it never touches
+  // out of memory).
+  std::vector<std::int32_t> target_slot_;
+  std::vector<TargetPlane> target_planes_;
+  std::vector<std::uint32_t> new_targets_;  // target points first matched this iteration
   double max_distance_squared_;
   Matrix6 h_;
   Vector6 g_;
