@@ -99,9 +99,12 @@ absl::StatusOr<MlsPatches> MlsPatches::Build(const std::vector<Vec3>& points, co
     patches.anchors_.push_back(points[i]);
   }
   const std::size_t count = patches.anchors_.size();
-  // Default-initialised: a patch's memory is first written when it is fitted, so the pages of
-  // patches no query needs are never touched (a one-shot registration fits a fraction of them).
+  // Default-initialised and filled front to back as patches are fitted (each takes the next
+  // slot), so the pages of slots no fit takes are never touched: a one-shot registration fits a
+  // fraction of the anchors.
   patches.patches_.reset(new Patch[count]);
+  patches.slots_.reset(new std::uint32_t[count]);
+  patches.next_slot_ = std::make_unique<std::atomic<std::uint32_t>>(0);
   patches.states_ = std::make_unique<std::atomic<std::uint8_t>[]>(count);
   for (std::size_t i = 0; i < count; ++i) patches.states_[i].store(kUnfitted);
   patches.anchor_tree_ = std::make_unique<KdTree>(patches.anchors_, threads);
@@ -112,8 +115,12 @@ absl::StatusOr<MlsPatches> MlsPatches::Build(const std::vector<Vec3>& points, co
   const bool finished = ParallelForUntilStopped<MlsProjector::Workspace>(
       count, threads, should_stop,
       [&](std::size_t i, MlsProjector::Workspace& workspace) {
-        const bool ok = patches.Fit(i, workspace, patches.patches_[i]);
-        if (ok) fitted_one.store(true, std::memory_order_relaxed);
+        Patch patch;
+        const bool ok = patches.Fit(i, workspace, patch);
+        if (ok) {
+          patches.Store(i, patch);
+          fitted_one.store(true, std::memory_order_relaxed);
+        }
         patches.states_[i].store(ok ? kFitted : kFailed, std::memory_order_relaxed);
       },
       64);
@@ -133,7 +140,6 @@ absl::StatusOr<MlsPatches> MlsPatches::Build(const std::vector<Vec3>& points, co
 MlsPatches::Patch MlsPatches::PatchOf(const MlsLocalFit& fit, double growth) {
   Patch patch{fit.origin,
               fit.frame.tangent_u,
-              fit.frame.tangent_v,
               fit.frame.normal,
               fit.height.coefficients,
               fit.frame.surface_variation,
@@ -163,11 +169,17 @@ bool MlsPatches::Fit(std::size_t i, MlsProjector::Workspace& workspace, Patch& o
   return false;  // a line at every support
 }
 
+void MlsPatches::Store(std::size_t i, const Patch& patch) const {
+  const std::uint32_t slot = next_slot_->fetch_add(1, std::memory_order_relaxed);
+  patches_[slot] = patch;
+  slots_[i] = slot;
+}
+
 bool MlsPatches::PatchAt(std::size_t i, Patch& out) const {
   std::atomic<std::uint8_t>& state = states_[i];
   std::uint8_t seen = state.load(std::memory_order_acquire);
   if (seen == kFitted) {
-    out = patches_[i];
+    out = patches_[slots_[i]];
     return true;
   }
   if (seen == kFailed) return false;
@@ -177,7 +189,7 @@ bool MlsPatches::PatchAt(std::size_t i, Patch& out) const {
   const bool ok = Fit(i, workspace, out);
   if (seen == kUnfitted &&
       state.compare_exchange_strong(seen, kFitting, std::memory_order_acquire)) {
-    if (ok) patches_[i] = out;
+    if (ok) Store(i, out);
     state.store(ok ? kFitted : kFailed, std::memory_order_release);
   }
   return ok;
@@ -224,11 +236,12 @@ MlsPatches::Blend MlsPatches::BlendAt(const Vec3& query, const Vec3& near, Ancho
     if (!(w > 0.0) || !PatchAt(index[j], patch)) continue;
     if (contributing == 0) reference_normal = patch.n;
     const Vec3 local = (query - patch.origin) * inv_r;
-    const double x = local.dot(patch.u), y = local.dot(patch.v);
+    const Vec3 v = patch.n.cross(patch.u);
+    const double x = local.dot(patch.u), y = local.dot(v);
     const HeightWithGradient h = EvaluateHeight(patch.coefficients, x, y);
-    Vec3 normal = (patch.n - h.dx * patch.u - h.dy * patch.v).normalized();
+    Vec3 normal = (patch.n - h.dx * patch.u - h.dy * v).normalized();
     if (normal.dot(reference_normal) < 0.0) normal = -normal;
-    point_sum += w * (patch.origin + r * (x * patch.u + y * patch.v + h.value * patch.n));
+    point_sum += w * (patch.origin + r * (x * patch.u + y * v + h.value * patch.n));
     normal_sum += w * normal;
     variation_sum += w * patch.surface_variation;
     weight_sum += w;
@@ -302,7 +315,7 @@ MlsProjection MlsPatches::ProjectNear(const Vec3& query, const Vec3& near, bool 
 }
 
 std::size_t MlsPatches::MemoryBytes() const {
-  return size() * (sizeof(Patch) + sizeof(std::atomic<std::uint8_t>)) +
+  return size() * (sizeof(Patch) + sizeof(std::uint32_t) + sizeof(std::atomic<std::uint8_t>)) +
          anchors_.capacity() * sizeof(Vec3) + projectors_.size() * sizeof(MlsProjector) +
          (anchor_tree_ ? anchor_tree_->MemoryBytes() : 0);
 }

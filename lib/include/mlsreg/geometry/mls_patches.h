@@ -147,7 +147,9 @@ class MlsPatches {
 
  private:
   struct Patch {
-    Vec3 origin, u, v, n;                 // the reference plane, (u, v, n) right-handed
+    // The reference plane: its origin, tangent u and normal n; the other tangent v = n x u (as
+    // the fit made it: the same vector bit for bit) is not kept.
+    Vec3 origin, u, n;
     std::array<double, 10> coefficients;  // HeightField monomials over (x, y) / r, heights / r
     double surface_variation;
     bool one_scan_line;  // its support lies on one scan line of scan_sensor_ (see above)
@@ -169,6 +171,8 @@ class MlsPatches {
   static Patch PatchOf(const MlsLocalFit& fit, double growth);
   // Algorithm 1 from anchor `i`; false when it fails.
   bool Fit(std::size_t i, MlsProjector::Workspace& workspace, Patch& out) const;
+  // Stores anchor i's fitted patch in the next free slot.
+  void Store(std::size_t i, const Patch& patch) const;
   // Anchor i's patch into `out`, fitting it now if no thread has; false when its fit failed.
   bool PatchAt(std::size_t i, Patch& out) const;
   Blend BlendAt(const Vec3& query, const Vec3& near, AnchorCache* cache = nullptr,
@@ -184,9 +188,12 @@ class MlsPatches {
   std::optional<SensorFinding> scan_sensor_;
   // The exact Algorithm 1 that fits the patches, at r and at each grown support.
   std::vector<std::unique_ptr<MlsProjector>> projectors_;
-  // One per anchor. Written once per patch, by the thread that moved its state from kUnfitted
-  // to kFitting; read only after its state is kFitted (acquire).
+  // Room for one patch per anchor, taken in the order the patches are fitted: anchor i's is
+  // patches_[slots_[i]]. Both written once per patch, by the thread that moved its state from
+  // kUnfitted to kFitting; read only after its state is kFitted (acquire).
   mutable std::unique_ptr<Patch[]> patches_;
+  mutable std::unique_ptr<std::uint32_t[]> slots_;
+  std::unique_ptr<std::atomic<std::uint32_t>> next_slot_;  // the next free slot
   std::unique_ptr<std::atomic<std::uint8_t>[]> states_;
   std::vector<Vec3> anchors_;  // the anchor samples, indexed by anchor_tree_
   std::unique_ptr<KdTree> anchor_tree_;
