@@ -116,12 +116,12 @@ absl::StatusOr<MlsPatches> MlsPatches::Build(const std::vector<Vec3>& points, co
       count, threads, should_stop,
       [&](std::size_t i, MlsProjector::Workspace& workspace) {
         Patch patch;
-        const bool ok = patches.Fit(i, workspace, patch);
-        if (ok) {
+        const State outcome = patches.Fit(i, workspace, patch);
+        if (IsFitted(outcome)) {
           patches.Store(i, patch);
           fitted_one.store(true, std::memory_order_relaxed);
         }
-        patches.states_[i].store(ok ? kFitted : kFailed, std::memory_order_relaxed);
+        patches.states_[i].store(outcome, std::memory_order_relaxed);
       },
       64);
   if (!finished) return absl::CancelledError("MLS patch build cancelled");
@@ -138,12 +138,8 @@ absl::StatusOr<MlsPatches> MlsPatches::Build(const std::vector<Vec3>& points, co
 }
 
 MlsPatches::Patch MlsPatches::PatchOf(const MlsLocalFit& fit, double growth) {
-  Patch patch{fit.origin,
-              fit.frame.tangent_u,
-              fit.frame.normal,
-              fit.height.coefficients,
-              fit.frame.surface_variation,
-              false};
+  Patch patch{fit.origin,       fit.frame.tangent_u,     fit.frame.tangent_v,
+              fit.frame.normal, fit.height.coefficients, fit.frame.surface_variation};
   if (growth != 1.0) {
     // Fitted over (x, y) / (growth r) with heights in growth r: in units of r a monomial of
     // degree k takes growth^(1 - k).
@@ -153,20 +149,22 @@ MlsPatches::Patch MlsPatches::PatchOf(const MlsLocalFit& fit, double growth) {
   return patch;
 }
 
-bool MlsPatches::Fit(std::size_t i, MlsProjector::Workspace& workspace, Patch& out) const {
+MlsPatches::State MlsPatches::Fit(std::size_t i, MlsProjector::Workspace& workspace,
+                                  Patch& out) const {
   double growth = 1.0;
   for (const std::unique_ptr<MlsProjector>& projector : projectors_) {
     const MlsProjection projection = projector->Project(anchors_[i], workspace);
-    if (projection.status != ProjectionStatus::kOk) return false;
+    if (projection.status != ProjectionStatus::kOk) return kFailed;
     const Vec3& spread = workspace.last_fit.frame.eigenvalues;  // ascending
     if (!scan_sensor_ || spread[1] >= kMinSupportSpread * spread[2]) {
       out = PatchOf(workspace.last_fit, growth);
-      if (scan_sensor_) out.one_scan_line = OnOneScanLine(*points_, workspace, *scan_sensor_);
-      return true;
+      return scan_sensor_ && OnOneScanLine(*points_, workspace, *scan_sensor_)
+                 ? kFittedOnOneScanLine
+                 : kFitted;
     }
     growth *= kSupportGrowth;
   }
-  return false;  // a line at every support
+  return kFailed;  // a line at every support
 }
 
 void MlsPatches::Store(std::size_t i, const Patch& patch) const {
@@ -175,31 +173,31 @@ void MlsPatches::Store(std::size_t i, const Patch& patch) const {
   slots_[i] = slot;
 }
 
-bool MlsPatches::PatchAt(std::size_t i, Patch& out) const {
+MlsPatches::State MlsPatches::PatchAt(std::size_t i, Patch& out) const {
   std::atomic<std::uint8_t>& state = states_[i];
   std::uint8_t seen = state.load(std::memory_order_acquire);
-  if (seen == kFitted) {
+  if (IsFitted(static_cast<State>(seen))) {
     out = patches_[slots_[i]];
-    return true;
+    return static_cast<State>(seen);
   }
-  if (seen == kFailed) return false;
+  if (seen == kFailed) return kFailed;
   // Unfitted, or another thread is fitting it: fit here (the fit is a pure function of the
   // anchor, so both threads get the same patch); only the thread that claims the patch stores it.
   thread_local MlsProjector::Workspace workspace;
-  const bool ok = Fit(i, workspace, out);
+  const State outcome = Fit(i, workspace, out);
   if (seen == kUnfitted &&
       state.compare_exchange_strong(seen, kFitting, std::memory_order_acquire)) {
-    if (ok) Store(i, out);
-    state.store(ok ? kFitted : kFailed, std::memory_order_release);
+    if (IsFitted(outcome)) Store(i, out);
+    state.store(outcome, std::memory_order_release);
   }
-  return ok;
+  return outcome;
 }
 
 std::size_t MlsPatches::fitted() const {
   std::size_t n = 0;
   for (std::size_t i = 0; i < size(); ++i) {
     const std::uint8_t s = states_[i].load(std::memory_order_relaxed);
-    n += s == kFitted || s == kFailed;
+    n += IsFitted(static_cast<State>(s)) || s == kFailed;
   }
   return n;
 }
@@ -233,19 +231,20 @@ MlsPatches::Blend MlsPatches::BlendAt(const Vec3& query, const Vec3& near, Ancho
   for (std::size_t j = 0; j < used; ++j) {
     double w = WendlandWeight(std::sqrt(distance_squared[j]), support);
     if (j == 0 && !(w > 0.0)) w = 1.0;  // all k+1 equidistant: the nearest alone
-    if (!(w > 0.0) || !PatchAt(index[j], patch)) continue;
+    if (!(w > 0.0)) continue;
+    const State fitted = PatchAt(index[j], patch);
+    if (fitted == kFailed) continue;
     if (contributing == 0) reference_normal = patch.n;
     const Vec3 local = (query - patch.origin) * inv_r;
-    const Vec3 v = patch.n.cross(patch.u);
-    const double x = local.dot(patch.u), y = local.dot(v);
+    const double x = local.dot(patch.u), y = local.dot(patch.v);
     const HeightWithGradient h = EvaluateHeight(patch.coefficients, x, y);
-    Vec3 normal = (patch.n - h.dx * patch.u - h.dy * v).normalized();
+    Vec3 normal = (patch.n - h.dx * patch.u - h.dy * patch.v).normalized();
     if (normal.dot(reference_normal) < 0.0) normal = -normal;
-    point_sum += w * (patch.origin + r * (x * patch.u + y * v + h.value * patch.n));
+    point_sum += w * (patch.origin + r * (x * patch.u + y * patch.v + h.value * patch.n));
     normal_sum += w * normal;
     variation_sum += w * patch.surface_variation;
     weight_sum += w;
-    one_scan_line = one_scan_line || patch.one_scan_line;
+    one_scan_line = one_scan_line || fitted == kFittedOnOneScanLine;
     ++contributing;
   }
   if (contributing == 0) return blend;

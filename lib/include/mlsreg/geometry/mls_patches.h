@@ -147,15 +147,14 @@ class MlsPatches {
 
  private:
   struct Patch {
-    // The reference plane: its origin, tangent u and normal n; the other tangent v = n x u (as
-    // the fit made it: the same vector bit for bit) is not kept.
-    Vec3 origin, u, n;
+    Vec3 origin, u, v, n;                 // the reference plane, (u, v, n) right-handed
     std::array<double, 10> coefficients;  // HeightField monomials over (x, y) / r, heights / r
     double surface_variation;
-    bool one_scan_line;  // its support lies on one scan line of scan_sensor_ (see above)
   };
-  // A patch's state: not yet fitted, being fitted by one thread, fitted, or its fit failed.
-  enum State : std::uint8_t { kUnfitted, kFitting, kFitted, kFailed };
+  // A patch's state: not yet fitted, being fitted by one thread, fitted (its support on one
+  // scan line of scan_sensor_ or not: see above), or its fit failed.
+  enum State : std::uint8_t { kUnfitted, kFitting, kFitted, kFittedOnOneScanLine, kFailed };
+  static bool IsFitted(State s) { return s == kFitted || s == kFittedOnOneScanLine; }
   // One blend: the k patches nearest `near` evaluated at `query`. A blend whose nearest anchor
   // lies farther than `beyond` from `near` stops before it fits or reads a patch: not ok, with
   // nearest_distance set (the caller refuses such a query whatever the patches would say).
@@ -169,12 +168,13 @@ class MlsPatches {
              const std::optional<Vec3>& viewpoint, const std::optional<SensorFinding>& scan_sensor);
   // The patch of `fit`, made at the support radius growth * r, in units of r.
   static Patch PatchOf(const MlsLocalFit& fit, double growth);
-  // Algorithm 1 from anchor `i`; false when it fails.
-  bool Fit(std::size_t i, MlsProjector::Workspace& workspace, Patch& out) const;
+  // Algorithm 1 from anchor `i` into `out`: kFitted or kFittedOnOneScanLine, else kFailed.
+  State Fit(std::size_t i, MlsProjector::Workspace& workspace, Patch& out) const;
   // Stores anchor i's fitted patch in the next free slot.
   void Store(std::size_t i, const Patch& patch) const;
-  // Anchor i's patch into `out`, fitting it now if no thread has; false when its fit failed.
-  bool PatchAt(std::size_t i, Patch& out) const;
+  // Anchor i's patch into `out`, fitting it now if no thread has: kFitted or
+  // kFittedOnOneScanLine, else kFailed (and `out` unset).
+  State PatchAt(std::size_t i, Patch& out) const;
   Blend BlendAt(const Vec3& query, const Vec3& near, AnchorCache* cache = nullptr,
                 double beyond = std::numeric_limits<double>::infinity()) const;
   MlsProjection Finish(const Vec3& query, const Vec3& near, bool seed_far_queries, int blends,
