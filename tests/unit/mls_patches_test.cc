@@ -181,6 +181,62 @@ TEST(MlsPatchesTest, ProjectsOntoSphereAsAccuratelyAsTheExactProjection) {
   EXPECT_LE(patches_angle, 2.6 * exact_angle);  // measured: mean 0.79 against 0.33 degrees
 }
 
+TEST(MlsPatchesTest, AJudgingProjectionIsAsCloseAndAsContinuousFromFewerPatchFits) {
+  // A noisy sphere (radial noise 0.3 d): ProjectForJudging (the verification's) against Project,
+  // each on its own patches fitted on first use, from the same 300 queries within 2 d of the
+  // surface. Measured: RMS distance from the unit sphere 0.168 against 0.158 d, normals 4.4
+  // against 4.3 degrees off radial on average, 858 against 1,171 patches fitted.
+  PointCloud sphere = SampleSphere(20000, 1.0, -2.0, 7);
+  const double d0 = SamplingDistance(sphere.points, KdTree(sphere.points));
+  std::mt19937_64 noise_rng(3);
+  std::normal_distribution<double> noise(0.0, 0.3 * d0);
+  for (Vec3& x : sphere.points) x *= 1.0 + noise(noise_rng);
+  const KdTree tree(sphere.points);
+  const double d = SamplingDistance(sphere.points, tree);
+  const auto lazy = [&] {
+    return *MlsPatches::Build(sphere.points, tree, PatchOptionsWithRadius(5.0 * d), std::nullopt,
+                              PatchFitting::kOnFirstUse, 1);
+  };
+  const MlsPatches for_judging = lazy(), for_registering = lazy();
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> g(0.0, 1.0);
+  double judged_sq = 0.0, projected_sq = 0.0, judged_angle = 0.0, projected_angle = 0.0;
+  const auto angle = [](const MlsProjection& p, const Vec3& radial) {
+    return std::acos(std::min(1.0, std::abs(p.normal.dot(radial))));
+  };
+  for (int i = 0; i < 300; ++i) {
+    const Vec3 dir = Vec3(g(rng), g(rng), g(rng)).normalized();
+    const Vec3 query = dir * (1.0 + 2.0 * d * std::uniform_real_distribution<double>(-1, 1)(rng));
+    const MlsProjection judged = for_judging.ProjectForJudging(query);
+    const MlsProjection projected = for_registering.Project(query, false);
+    ASSERT_EQ(judged.status, ProjectionStatus::kOk);
+    ASSERT_EQ(projected.status, ProjectionStatus::kOk);
+    judged_sq += std::pow(judged.point.norm() - 1.0, 2);
+    projected_sq += std::pow(projected.point.norm() - 1.0, 2);
+    judged_angle += angle(judged, judged.point.normalized());
+    projected_angle += angle(projected, projected.point.normalized());
+  }
+  EXPECT_LE(std::sqrt(judged_sq), 1.2 * std::sqrt(projected_sq));
+  EXPECT_LE(judged_angle, 1.2 * projected_angle);
+  EXPECT_LE(for_judging.fitted(), 0.8 * for_registering.fitted());
+
+  // Continuous in the query: walked 0.01 d at a time along a circle 1 d off the surface, across
+  // many anchors (0.5 r = 2.5 d apart), its distance from the projection changes by at most
+  // 0.01 d a step (measured 0.004 d; the nearest patch alone jumps by 0.16 d where the nearest
+  // anchor changes, by the neighbouring patches' disagreement).
+  double last_distance = 0.0, worst_jump = 0.0;
+  for (int step = 0; step <= 3000; ++step) {
+    const double turned = step * 0.01 * d;
+    const Vec3 query = (1.0 + d) * Vec3(std::cos(turned), std::sin(turned), 0.0);
+    const MlsProjection p = for_judging.ProjectForJudging(query);
+    ASSERT_EQ(p.status, ProjectionStatus::kOk);
+    const double distance = (query - p.point).norm();
+    if (step > 0) worst_jump = std::max(worst_jump, std::abs(distance - last_distance));
+    last_distance = distance;
+  }
+  EXPECT_LT(worst_jump, 0.01 * d);
+}
+
 TEST(MlsPatchesTest, ProjectsOntoParaboloidWithinTolerance) {
   // z = 0.5 (x^2 + y^2), grid spacing 0.02, r = 5 d: on the surface within 0.01 d.
   PointCloud cloud;
@@ -266,7 +322,7 @@ TEST(MlsPatchesTest, ASeedMemoGivesTheSameFarProjectionsAndReusesThem) {
       q += Vec3(step(rng), step(rng), step(rng));
       const std::uint32_t before = memo.sample;
       const MlsProjection cold = patches.Project(q, true);
-      const MlsProjection memoised = patches.Project(q, true, &cache, nullptr, &memo);
+      const MlsProjection memoised = patches.Project(q, true, &cache, &memo);
       ASSERT_EQ(cold.status, ProjectionStatus::kOk);
       ASSERT_TRUE(cold.seeded_from_nearest_sample);
       EXPECT_EQ(memoised.status, cold.status);
@@ -388,47 +444,6 @@ TEST(MlsPatchesTest, AnchorCacheGivesTheSameProjectionsWithFewerTreeSearches) {
     }
   }
   EXPECT_LT(refills, steps / 2) << refills << " refills in " << steps << " steps";
-}
-
-TEST(MlsPatchesTest, AFootCacheKeepsBothBlendsCachedForQueriesOffTheSurface) {
-  // Queries 2-4 d off a sphere asking again from nearly the same place (steps of 0.05 d, as a
-  // verification's settling moves its samples): the blend around the query and the blend around
-  // its first estimate on the surface lie farther apart than one cache reaches, so one cache is
-  // refilled at nearly every projection; with a cache for each blend the refills stop after the
-  // first projection, and every projection is bit for bit the one without caches.
-  const SphereWithPatches s(35);
-  const double d = s.d;
-  const MlsPatches& patches = s.patches;
-  std::mt19937_64 rng(43);
-  std::normal_distribution<double> g(0.0, 1.0);
-  std::uniform_real_distribution<double> off(2.0, 4.0);
-  int one_cache_refills = 0, two_cache_refills = 0, steps = 0;
-  for (int query = 0; query < 40; ++query) {
-    const Vec3 dir = Vec3(g(rng), g(rng), std::abs(g(rng)) + 1.0).normalized();
-    Vec3 q = dir * (1.0 + (query % 2 == 0 ? 1.0 : -1.0) * off(rng) * d);
-    MlsPatches::AnchorCache single, around_query, around_foot;
-    for (int step = 0; step < 8; ++step, ++steps) {
-      q += 0.05 * d * Vec3(g(rng), g(rng), g(rng)).normalized();
-      const Vec3 single_before = single.center;
-      const Vec3 query_before = around_query.center, foot_before = around_foot.center;
-      const MlsProjection cold = patches.Project(q, false);
-      const MlsProjection one = patches.Project(q, false, &single);
-      const MlsProjection two = patches.Project(q, false, &around_query, &around_foot);
-      ASSERT_EQ(cold.status, ProjectionStatus::kOk);
-      ASSERT_EQ(two.status, cold.status);
-      EXPECT_EQ(two.point, cold.point) << "query " << query << " step " << step;
-      EXPECT_EQ(two.normal, cold.normal);
-      EXPECT_EQ(two.curvature, cold.curvature);
-      EXPECT_EQ(one.point, cold.point);
-      if (step == 0) continue;  // every cache starts empty
-      one_cache_refills += single.center != single_before;
-      two_cache_refills +=
-          (around_query.center != query_before) + (around_foot.center != foot_before);
-    }
-  }
-  EXPECT_GT(one_cache_refills, steps / 4) << one_cache_refills << " refills in " << steps;
-  EXPECT_LT(two_cache_refills, one_cache_refills / 4)
-      << two_cache_refills << " against " << one_cache_refills;
 }
 
 TEST(MlsPatchesTest, BuildIsCancellable) {

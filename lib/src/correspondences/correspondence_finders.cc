@@ -88,9 +88,9 @@ bool MlsCorrespondenceFinder::EnsurePatches() {
   if (projection_ == MlsProjectionKind::kExact || patches_) return true;
   MlsOptions options = projector_.options();
   options.seed_far_queries_from_nearest_sample = true;
-  absl::StatusOr<MlsPatches> built = MlsPatches::Build(
-      target_.points(), target_.tree(), options, target_.cloud().viewpoint,
-      PatchFitting::kOnFirstUse, threads_, should_stop_, target_.scan_sensor());
+  absl::StatusOr<MlsPatches> built =
+      MlsPatches::Build(target_.points(), target_.tree(), options, target_.cloud().viewpoint,
+                        PatchFitting::kOnFirstUse, threads_, should_stop_, target_.scan_sensor());
   if (absl::IsCancelled(built.status())) return false;
   if (built.ok()) {
     own_patches_ = *std::move(built);
@@ -133,7 +133,7 @@ MlsProjection MlsCorrespondenceFinder::ProjectOne(const Vec3& query, const Vec3*
   const bool seed_far = far_queries_ != FarQueryPolicy::kDrop;
   if (patches_) {
     return start ? patches_->ProjectNear(query, *start, seed_far, &anchors)
-                 : patches_->Project(query, seed_far, &anchors, nullptr, &seed);
+                 : patches_->Project(query, seed_far, &anchors, &seed);
   }
   const MlsProjection projection = projector_.ProjectFrom(start ? *start : query, workspace, kept);
   // A neighbourhood in a dense cluster is not worth its memory for every sample.

@@ -203,10 +203,10 @@ std::size_t MlsPatches::fitted() const {
 }
 
 MlsPatches::Blend MlsPatches::BlendAt(const Vec3& query, const Vec3& near, AnchorCache* cache,
-                                      double beyond) const {
-  constexpr int k = kBlendedPatches;
-  std::uint32_t index[k + 1];
-  double distance_squared[k + 1];
+                                      double beyond, int blended) const {
+  const int k = std::clamp(blended, 1, kBlendedPatches);
+  std::uint32_t index[kBlendedPatches + 1];
+  double distance_squared[kBlendedPatches + 1];
   const std::size_t found =
       CachedKnn(*anchor_tree_, anchors_, near, k + 1, cache, index, distance_squared);
   Blend blend;
@@ -273,9 +273,16 @@ std::optional<MlsProjection> MlsPatches::SeededAt(std::uint32_t sample) const {
   return seeded.projection;
 }
 
+MlsProjection MlsPatches::ProjectForJudging(const Vec3& query, AnchorCache* cache) const {
+  const Blend blend = BlendAt(query, query, cache, mls_.radius, kJudgingPatches);
+  if (blend.ok) return blend.projection;
+  MlsProjection far;
+  far.status = ProjectionStatus::kTooFewNeighbors;
+  return far;
+}
+
 MlsProjection MlsPatches::Finish(const Vec3& query, const Vec3& near, bool seed_far_queries,
-                                 int blends, AnchorCache* cache, AnchorCache* foot_cache,
-                                 SeedMemo* seed_memo) const {
+                                 int blends, AnchorCache* cache, SeedMemo* seed_memo) const {
   Blend blend = BlendAt(query, near, cache, mls_.radius);
   if (!blend.ok || blend.nearest_distance > mls_.radius) {
     MlsProjection far;
@@ -293,8 +300,7 @@ MlsProjection MlsPatches::Finish(const Vec3& query, const Vec3& near, bool seed_
   if (blends > 1) {
     // Patches chosen around the first estimate, which lies on the surface: the right ones even
     // when the query is well off the surface.
-    const Blend refined =
-        BlendAt(query, blend.projection.point, foot_cache != nullptr ? foot_cache : cache);
+    const Blend refined = BlendAt(query, blend.projection.point, cache);
     if (refined.ok) {
       blend = refined;
       blend.projection.iterations = 2;
@@ -304,13 +310,13 @@ MlsProjection MlsPatches::Finish(const Vec3& query, const Vec3& near, bool seed_
 }
 
 MlsProjection MlsPatches::Project(const Vec3& query, bool seed_far_queries, AnchorCache* cache,
-                                  AnchorCache* foot_cache, SeedMemo* seed_memo) const {
-  return Finish(query, query, seed_far_queries, 2, cache, foot_cache, seed_memo);
+                                  SeedMemo* seed_memo) const {
+  return Finish(query, query, seed_far_queries, 2, cache, seed_memo);
 }
 
 MlsProjection MlsPatches::ProjectNear(const Vec3& query, const Vec3& near, bool seed_far_queries,
                                       AnchorCache* cache) const {
-  return Finish(query, near, seed_far_queries, 1, cache, nullptr, nullptr);
+  return Finish(query, near, seed_far_queries, 1, cache, nullptr);
 }
 
 std::size_t MlsPatches::MemoryBytes() const {

@@ -71,8 +71,7 @@ SurfaceHit HitSurface(const Target& target, const Vec3& x, std::uint32_t voxel,
     hit.local_noise = voxels.spread[voxel];
   }
   if (const MlsPatches* patches = target.mls_patches(); patches != nullptr) {
-    const MlsProjection p =
-        patches->Project(x, /*seed_far_queries=*/false, &caches.anchors, &caches.foot_anchors);
+    const MlsProjection p = patches->ProjectForJudging(x, &caches.anchors);
     if (p.status == ProjectionStatus::kOk) {
       hit.normal = p.normal;
       hit.across = (x - p.point).dot(p.normal);

@@ -74,6 +74,11 @@ class MlsPatches {
   // Anchor spacing h as a fraction of r, and the patches blended per query.
   static constexpr double kAnchorSpacingPerRadius = 0.5;
   static constexpr int kBlendedPatches = 4;
+  // The patches ProjectForJudging blends (its weights fall to zero at the fourth anchor). Two
+  // would be continuous too, but on sparse scans (16 and 32 beams, whose patches are planes over
+  // grown supports) they left a residual field the verdict's settling reads as a pull: starts that
+  // verified went on to the global stage.
+  static constexpr int kJudgingPatches = 3;
   // Algorithm 1 fits an anchor's patch until an iteration moves it by less than this share of r
   // (when MlsOptions::tolerance is not set).
   static constexpr double kAnchorTolerancePerRadius = 1e-2;
@@ -117,19 +122,22 @@ class MlsPatches {
   // anchor is replaced by its nearest target sample (seeded_from_nearest_sample); otherwise it
   // fails with kTooFewNeighbors. Thread-safe; allocation-free once the patches it blends are
   // fitted. With `cache` (the query's AnchorCache), the anchors come from it where they can: the
-  // result is the same, bit for bit, with or without it. The second blend, around the first
-  // estimate on the surface, uses `foot_cache` when given (else `cache`): a query that asks
-  // again from nearly the same place (a verification's settling) then finds both blends' anchors
-  // in their caches, where one cache would be refilled at both points whenever the query lies
-  // farther from the surface than the cache reaches.
-  // With `seed_memo`, a seeded projection is reused from it when its sample is the same (bit for
-  // bit the same result).
+  // result is the same, bit for bit, with or without it (both blends use it). With
+  // `seed_memo`, a seeded projection is reused from it when its sample is the same (bit for bit
+  // the same result).
   MlsProjection Project(const Vec3& query, bool seed_far_queries, AnchorCache* cache = nullptr,
-                        AnchorCache* foot_cache = nullptr, SeedMemo* seed_memo = nullptr) const;
+                        SeedMemo* seed_memo = nullptr) const;
   // The same, with the patches chosen around `near`, a point already close to the surface (a
   // warm start: the query on its previous projection's tangent plane). One blend instead of two.
   MlsProjection ProjectNear(const Vec3& query, const Vec3& near, bool seed_far_queries,
                             AnchorCache* cache = nullptr) const;
+  // The surface where a pose puts `query`, for judging the pose (the verification): one blend of
+  // the kJudgingPatches patches nearest the query, continuous in the query as Project is, from
+  // fewer patch fits. A verification's samples lie a working voxel apart, so each fits the
+  // patches it blends on first use (on a scan, whose supports grow across the scan lines, a
+  // third of a KITTI registration's time). A query farther than r from every anchor fails
+  // (kTooFewNeighbors). Thread-safe; `cache` as for Project.
+  MlsProjection ProjectForJudging(const Vec3& query, AnchorCache* cache = nullptr) const;
 
   double radius() const { return mls_.radius; }
   int polynomial_degree() const { return mls_.polynomial_degree; }
@@ -155,9 +163,10 @@ class MlsPatches {
   // scan line of scan_sensor_ or not: see above), or its fit failed.
   enum State : std::uint8_t { kUnfitted, kFitting, kFitted, kFittedOnOneScanLine, kFailed };
   static bool IsFitted(State s) { return s == kFitted || s == kFittedOnOneScanLine; }
-  // One blend: the k patches nearest `near` evaluated at `query`. A blend whose nearest anchor
-  // lies farther than `beyond` from `near` stops before it fits or reads a patch: not ok, with
-  // nearest_distance set (the caller refuses such a query whatever the patches would say).
+  // One blend: the `blended` (at most kBlendedPatches) patches nearest `near` evaluated at
+  // `query`. A blend whose nearest anchor lies farther than `beyond` from `near` stops before it
+  // fits or reads a patch: not ok, with nearest_distance set (the caller refuses such a query
+  // whatever the patches would say).
   struct Blend {
     bool ok = false;
     double nearest_distance = 0.0;
@@ -176,9 +185,10 @@ class MlsPatches {
   // kFittedOnOneScanLine, else kFailed (and `out` unset).
   State PatchAt(std::size_t i, Patch& out) const;
   Blend BlendAt(const Vec3& query, const Vec3& near, AnchorCache* cache = nullptr,
-                double beyond = std::numeric_limits<double>::infinity()) const;
+                double beyond = std::numeric_limits<double>::infinity(),
+                int blended = kBlendedPatches) const;
   MlsProjection Finish(const Vec3& query, const Vec3& near, bool seed_far_queries, int blends,
-                       AnchorCache* cache, AnchorCache* foot_cache, SeedMemo* seed_memo) const;
+                       AnchorCache* cache, SeedMemo* seed_memo) const;
   // The projection that stands in for a far query: its nearest target sample `sample`'s.
   std::optional<MlsProjection> SeededAt(std::uint32_t sample) const;
 

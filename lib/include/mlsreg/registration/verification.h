@@ -264,9 +264,8 @@ struct NoiseLevels {
 struct VerificationCaches {
   struct Sample {
     NeighborCache<8> voxels;
-    MlsPatches::AnchorCache anchors;       // around the sample
-    MlsPatches::AnchorCache foot_anchors;  // around its first estimate on the surface
-    NeighborCache<16> samples;  // where the patches do not reach: the local plane's samples
+    MlsPatches::AnchorCache anchors;  // around the sample
+    NeighborCache<16> samples;        // where the patches do not reach: the local plane's samples
   };
   const Target* target = nullptr;  // whose caches they are
   std::vector<Sample> samples;
