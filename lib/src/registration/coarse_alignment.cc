@@ -5,6 +5,7 @@
 
 #include "icp_loop.h"
 #include "mlsreg/core/parallel_for.h"
+#include "mlsreg/core/parallel_sum.h"
 #include "mlsreg/core/quantile.h"
 #include "mlsreg/geometry/neighbor_cache.h"
 #include "mlsreg/solvers/rigid_motion.h"
@@ -32,55 +33,48 @@ class VoxelPlaneStep final : public IcpStep {
         d_(d),
         threads_(threads),
         nearest_(source.points.size()),
-        matches_(source.points.size()) {}
+        previous_(source.points.size(), Vec3::Zero()) {}
 
   bool Match(const RigidTransform& pose, IterationReport& report) override {
-    h_.setZero();
-    g_.setZero();
     const double capture_squared = capture_ * capture_;
     const double kernel_squared = std::pow(kKernelPerCapture * capture_, 2);
-    // The samples' nearest voxels in parallel; their sums in sample order, so that the step is
-    // the same for any thread count.
-    ParallelFor(
-        samples_.size(), threads_,
-        [&](std::size_t begin, std::size_t end, int) {
-          for (std::size_t i = begin; i < end; ++i) {
-            SampleMatch& m = matches_[i];
-            const Vec3 previous = m.x;
-            m.x = pose * samples_[i];
-            const Neighbor nn =
-                TravellingNearest(*target_.tree, target_.points, m.x, previous, nearest_[i]);
-            m.kind = nn.distance_squared > capture_squared ? SampleMatch::kFar
-                     : !target_.valid[nn.index]            ? SampleMatch::kInvalid
-                                                           : SampleMatch::kMatched;
-            m.voxel = nn.index;
+    // Each sample's nearest voxel and its terms of the normal equations, on the threads, summed
+    // in fixed blocks of samples (ParallelSum): the step is the same for any thread count.
+    const NormalEquations sums = ParallelSum(
+        samples_.size(), threads_, partial_sums_,
+        [&](std::size_t i, NormalEquations& block) {
+          const Vec3 previous = previous_[i];
+          const Vec3 x = pose * samples_[i];
+          previous_[i] = x;
+          const Neighbor nn =
+              TravellingNearest(*target_.tree, target_.points, x, previous, nearest_[i]);
+          if (nn.distance_squared > capture_squared) {
+            ++block.far;
+            return;
           }
+          if (!target_.valid[nn.index]) {
+            ++block.invalid;
+            return;
+          }
+          const Vec3& n = target_.normals[nn.index];
+          const double r = n.dot(x - target_.points[nn.index]);
+          const double k = kernel_squared / (kernel_squared + r * r);
+          const double w = k * k;
+          Vector6 j;
+          j.head<3>() = x.cross(n);
+          j.tail<3>() = n;
+          block.h.noalias() += w * j * j.transpose();
+          block.g.noalias() += w * r * j;
+          block.sum_squared += r * r;
+          ++block.matched;
         },
-        256);
-    double sum_squared = 0.0;
-    for (const SampleMatch& m : matches_) {
-      if (m.kind == SampleMatch::kFar) {
-        ++report.counts.rejected_distance;
-        continue;
-      }
-      if (m.kind == SampleMatch::kInvalid) {
-        ++report.counts.invalid;
-        continue;
-      }
-      const Vec3& x = m.x;
-      const Vec3& n = target_.normals[m.voxel];
-      const double r = n.dot(x - target_.points[m.voxel]);
-      const double k = kernel_squared / (kernel_squared + r * r);
-      const double w = k * k;
-      Vector6 j;
-      j.head<3>() = x.cross(n);
-      j.tail<3>() = n;
-      h_.noalias() += w * j * j.transpose();
-      g_.noalias() += w * r * j;
-      sum_squared += r * r;
-      ++report.counts.matched;
-    }
-    SetRmse(report, sum_squared, d_);
+        [](NormalEquations& total, const NormalEquations& block) { total.Add(block); });
+    h_ = sums.h;
+    g_ = sums.g;
+    report.counts.rejected_distance += sums.far;
+    report.counts.invalid += sums.invalid;
+    report.counts.matched += sums.matched;
+    SetRmse(report, sums.sum_squared, d_);
     return true;
   }
 
@@ -100,19 +94,28 @@ class VoxelPlaneStep final : public IcpStep {
   const VoxelCloud& target_;
   const std::vector<Vec3>& samples_;
   double capture_, final_capture_;
-  // One sample's match in this iteration.
-  struct SampleMatch {
-    enum Kind : std::uint8_t { kFar, kInvalid, kMatched };
-    Vec3 x = Vec3::Zero();
-    std::uint32_t voxel = 0;
-    Kind kind = kFar;
+  // The samples' terms of the normal equations over a block of samples, or over all, with the
+  // matches counted.
+  struct NormalEquations {
+    Matrix6 h = Matrix6::Zero();
+    Vector6 g = Vector6::Zero();
+    double sum_squared = 0.0;
+    int matched = 0, far = 0, invalid = 0;
+    void Add(const NormalEquations& other) {
+      h += other.h;
+      g += other.g;
+      sum_squared += other.sum_squared;
+      matched += other.matched;
+      far += other.far;
+      invalid += other.invalid;
+    }
   };
-
   double d_;
   int threads_;
   // Per sample: the target voxels nearest its last position (an iteration moves it by little).
   std::vector<NeighborCache<8>> nearest_;
-  std::vector<SampleMatch> matches_;
+  std::vector<Vec3> previous_;                 // per sample, where the last iteration put it
+  std::vector<NormalEquations> partial_sums_;  // per block of samples (ParallelSum)
   Matrix6 h_;
   Vector6 g_;
 };

@@ -12,6 +12,7 @@
 #include "icp_loop.h"
 #include "method_runners.h"
 #include "mlsreg/core/parallel_for.h"
+#include "mlsreg/core/parallel_sum.h"
 #include "mlsreg/geometry/neighbor_cache.h"
 #include "mlsreg/geometry/sampling.h"
 #include "mlsreg/solvers/rigid_motion.h"
@@ -71,9 +72,9 @@ using Vector6 = Eigen::Matrix<double, 6, 1>;
 
 // G-ICP's match (closest points, covariances) and Gauss-Newton solve. A pair is kept when its
 // distance is within `max_distance`, or, when that is not positive, within the neighbourhood of
-// its target point. The closest points, covariances and information matrices are found on
-// `threads`; the normal equations are summed in sample order, so the result is the same for any
-// thread count.
+// its target point. The closest points, covariances and the normal equations are made on
+// `threads`, the equations summed in fixed blocks of samples (ParallelSum), so the result is the
+// same for any thread count.
 class GicpStep final : public internal::IcpStep {
  public:
   GicpStep(const Target& target, const PointCloud& source, const KdTree& source_tree,
@@ -144,35 +145,33 @@ class GicpStep final : public internal::IcpStep {
         target_slot_[t] = static_cast<std::int32_t>(slot);
       }
     });
-    // Each pair's verdict and terms of the normal equations, summed in sample order: the same
-    // for any thread count. On one thread each pair's terms are added as they are made; on more,
-    // they are made in parallel, kept per pair, and added in the same order.
+    // Each pair's verdict and terms of the normal equations, added where they are made, in
+    // blocks of samples that do not depend on the thread count (ParallelSum): the same sums for
+    // any thread count.
     const Eigen::Matrix3d r = pose.linear();
-    h_.setZero();
-    g_.setZero();
-    double sum_squared = 0.0;
-    const auto add = [&](Verdict verdict, const PairTerms& terms) {
-      if (verdict == Verdict::kInvalid) {
-        ++report.counts.invalid;
-      } else if (verdict == Verdict::kTooFar) {
-        ++report.counts.rejected_distance;
-      } else {
-        h_ += terms.hessian;
-        g_ += terms.gradient;
-        sum_squared += terms.residual_squared;
-        ++report.counts.matched;
-      }
-    };
-    if (threads_ <= 1) {
-      PairTerms terms;
-      for (std::size_t i = 0; i < n; ++i) add(Judge(i, r, terms), terms);
-    } else {
-      if (terms_.size() != n) terms_.resize(n);
-      ParallelFor(n, threads_, [&](std::size_t begin, std::size_t end, int) {
-        for (std::size_t i = begin; i < end; ++i) pairs_[i].verdict = Judge(i, r, terms_[i]);
-      });
-      for (std::size_t i = 0; i < n; ++i) add(pairs_[i].verdict, terms_[i]);
-    }
+    const NormalEquations sums = ParallelSum(
+        n, threads_, partial_sums_,
+        [&](std::size_t i, NormalEquations& block) {
+          PairTerms terms;
+          const Verdict verdict = Judge(i, r, terms);
+          if (verdict == Verdict::kInvalid) {
+            ++block.invalid;
+          } else if (verdict == Verdict::kTooFar) {
+            ++block.too_far;
+          } else {
+            block.h += terms.hessian;
+            block.g += terms.gradient;
+            block.sum_squared += terms.residual_squared;
+            ++block.matched;
+          }
+        },
+        [](NormalEquations& total, const NormalEquations& block) { total.Add(block); });
+    h_ = sums.h;
+    g_ = sums.g;
+    report.counts.invalid += sums.invalid;
+    report.counts.rejected_distance += sums.too_far;
+    report.counts.matched += sums.matched;
+    const double sum_squared = sums.sum_squared;
     internal::SetRmse(report, sum_squared, target_.sampling_distance());
     return true;
   }
@@ -201,7 +200,6 @@ class GicpStep final : public internal::IcpStep {
     Vec3 moved = Vec3::Zero();  // the sample under the current pose
     std::uint32_t target = 0;
     double distance_squared = 0.0;
-    Verdict verdict = Verdict::kInvalid;
   };
   // A matched pair's terms of the normal equations, J^T information J and J^T information e
   // (information: the inverse of the pair's combined covariance), and its squared residual.
@@ -209,6 +207,21 @@ class GicpStep final : public internal::IcpStep {
     Matrix6 hessian;
     Vector6 gradient;
     double residual_squared = 0.0;
+  };
+  // The pairs' terms summed over a block of samples, or over all, with the verdicts counted.
+  struct NormalEquations {
+    Matrix6 h = Matrix6::Zero();
+    Vector6 g = Vector6::Zero();
+    double sum_squared = 0.0;
+    int matched = 0, too_far = 0, invalid = 0;
+    void Add(const NormalEquations& other) {
+      h += other.h;
+      g += other.g;
+      sum_squared += other.sum_squared;
+      matched += other.matched;
+      too_far += other.too_far;
+      invalid += other.invalid;
+    }
   };
 
   // Sample i's verdict and, when matched, its terms into `terms` (r: the pose's rotation).
@@ -244,7 +257,7 @@ class GicpStep final : public internal::IcpStep {
   std::vector<Eigen::Matrix3d> source_cov_;
   std::vector<std::uint8_t> source_ok_;
   std::vector<Pair> pairs_;
-  std::vector<PairTerms> terms_;                  // per pair, on more than one thread
+  std::vector<NormalEquations> partial_sums_;     // per block of samples (ParallelSum)
   std::vector<NeighborCache<8>> nearest_caches_;  // per sample, the target points near it
   // Per target point its TargetSlot; per matched one its plane, in the order first matched (a
   // registration meets a fraction of the target: dense slots keep the pages it never touches

@@ -87,7 +87,7 @@ std::size_t CachedKnn(const KdTree& tree, const std::vector<Vec3>& points, const
   if (cache != nullptr) {
     cache->center = query;
     cache->count = count;
-    std::copy(found_index, found_index + count, cache->index);
+    for (int j = 0; j < count; ++j) cache->index[j] = found_index[j];
     // Slightly inside the tree's M-th distance, so that its rounding never matters.
     cache->reach = count < M ? std::numeric_limits<double>::infinity()
                              : std::sqrt(found_distance_squared[count - 1]) * (1.0 - 1e-9);
