@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cstdlib>
 
+#include "absl/strings/str_cat.h"
 #include "mlsreg/evaluation/evaluation.h"
 #include "mlsreg/evaluation/metrics.h"
 #include "mlsreg/evaluation/shard.h"
@@ -42,8 +43,8 @@ Manifest ManifestOfTargets(const std::vector<std::string>& targets) {
   Manifest manifest;
   for (std::size_t i = 0; i < targets.size(); ++i) {
     ManifestProblem p;
-    p.id = "p" + std::to_string(i);
-    p.source_path = "s" + std::to_string(i) + ".ply";
+    p.id = absl::StrCat("p", i);
+    p.source_path = absl::StrCat("s", i, ".ply");
     p.target_path = targets[i];
     manifest.problems.push_back(p);
   }

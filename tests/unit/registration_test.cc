@@ -175,7 +175,9 @@ TEST(RegistrationTest, MlsFinePhaseProjectsOnlySamplesThatCanStillBeMatched) {
   for (std::size_t i = 0; i < result->trace.size(); ++i) {
     SCOPED_TRACE(i);
     EXPECT_EQ(result->trace[i].counts.total(), result->num_samples);
-    if (i > fine) EXPECT_LE(result->trace[i].counts.matched, first_fine_matched);
+    if (i > fine) {
+      EXPECT_LE(result->trace[i].counts.matched, first_fine_matched);
+    }
   }
   const PoseError e = EvaluatePose(source.points, result->transform, truth, d);
   EXPECT_LT(e.rmse_d, 0.5);

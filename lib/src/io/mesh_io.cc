@@ -34,8 +34,8 @@ bool NextContentLine(LineCursor& lines, std::string_view* line) {
   return false;
 }
 
-absl::Status ReadCoordinates(std::string_view* rest, std::string_view format,
-                             const io_internal::Location& where, Vec3* vertex) {
+absl::Status ReadCoordinates(std::string_view* rest, const io_internal::Location& where,
+                             Vec3* vertex) {
   std::string_view token;
   for (int axis = 0; axis < 3; ++axis) {
     if (!NextToken(rest, &token)) {
@@ -125,7 +125,7 @@ absl::StatusOr<TriangleMesh> ParseOff(std::string_view bytes) {
     }
     const io_internal::Location where = {kOff, io_internal::Location::Unit::kLine,
                                          lines.line_number(), "vertex", i};
-    if (absl::Status s = ReadCoordinates(&line, kOff, where, &vertices[i]); !s.ok()) return s;
+    if (absl::Status s = ReadCoordinates(&line, where, &vertices[i]); !s.ok()) return s;
   }
   std::vector<std::uint32_t> sizes;
   std::vector<double> indices;
@@ -166,7 +166,7 @@ absl::StatusOr<TriangleMesh> ParseObj(std::string_view bytes) {
       const io_internal::Location where = {kObj, io_internal::Location::Unit::kLine,
                                            lines.line_number(), "vertex", vertices.size()};
       Vec3 v;
-      if (absl::Status s = ReadCoordinates(&line, kObj, where, &v); !s.ok()) return s;
+      if (absl::Status s = ReadCoordinates(&line, where, &v); !s.ok()) return s;
       vertices.push_back(v);
     } else if (token == "f") {
       const io_internal::Location where = {kObj, io_internal::Location::Unit::kLine,

@@ -33,13 +33,13 @@ struct RegistrationProblem {
   // The source's surface properties analysed so far, shared by the phases of a composite
   // method (auto's refinements and finish); null: each phase analyses its own samples.
   SurfaceCache* source_surface = nullptr;
-  int threads = 1;           // ExecutionOptions::threads
-  double noise_d = 0.0;      // the clouds' estimated noise (the larger), units of d; 0: unknown
-  double noise = 0.0;        // their combined noise sigma, absolute; 0: unknown
-  NoiseLevels noise_levels;  // each cloud's, absolute
+  int threads = 1;       // ExecutionOptions::threads
+  double noise_d = 0.0;  // the clouds' estimated noise (the larger), units of d; 0: unknown
+  double noise = 0.0;    // their combined noise sigma, absolute; 0: unknown
+  NoiseLevels noise_levels = {};  // each cloud's, absolute
   // The source's sensor (FindScanSensor), looked for when the target's is known; the
   // verification's samples carry it.
-  std::optional<Vec3> source_sensor;
+  std::optional<Vec3> source_sensor = {};
   // Sparse ICP from a pose that already verified (auto's finish): the samples whose first
   // correspondence the filter rejects are not matched again, and count in every later iteration
   // as they did then. Near a verified pose a sample outside the overlap, or on surface the

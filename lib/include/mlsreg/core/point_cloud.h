@@ -27,16 +27,16 @@ struct PinholeIntrinsics {
 struct PointCloud {
   std::vector<Vec3> points;
   // Empty, or one unit normal per point.
-  std::vector<Vec3> normals;
+  std::vector<Vec3> normals = {};
   // Empty, or one colour per point, as read from a file (PLY red green blue, PCD rgb, text r g
   // b). Registration never looks at them; they are carried to the clouds mlsreg writes.
-  std::vector<Rgb> colors;
+  std::vector<Rgb> colors = {};
   // The sensor origin in this cloud's frame, when the file says where it was (PCD VIEWPOINT, or
   // set by the caller). Normals are oriented toward it when known.
-  std::optional<Vec3> viewpoint;
+  std::optional<Vec3> viewpoint = {};
   // Set for an organised scan taken by a pinhole camera, with the cloud in the camera's frame
   // (camera at the origin looking along +z). Needed by reverse calibration (RC-BL, RC-P).
-  std::optional<PinholeIntrinsics> intrinsics;
+  std::optional<PinholeIntrinsics> intrinsics = {};
 
   std::size_t size() const { return points.size(); }
   bool empty() const { return points.empty(); }

@@ -170,12 +170,12 @@ struct ScaleReport {
   // Method auto: the capture range of the coarse alignment from the start, first and last.
   double capture_start = 0.0;
   double capture_end = 0.0;
-  double mls_radius = 0.0;               // methods with MLS correspondences
-  double verification_band = 0.0;        // the verification's mean inlier band
-  std::vector<UserLength> user_lengths;  // every length given in the clouds' units, by name
+  double mls_radius = 0.0;                    // methods with MLS correspondences
+  double verification_band = 0.0;             // the verification's mean inlier band
+  std::vector<UserLength> user_lengths = {};  // every length given in the clouds' units, by name
   // The target's sensor, where its sampling shows one (geometry/sensor_view.h): the verification
   // then counts the source samples that sensor could not have seen as hidden, not as uncovered.
-  std::optional<Vec3> sensor;
+  std::optional<Vec3> sensor = {};
 };
 
 struct RegistrationResult {
