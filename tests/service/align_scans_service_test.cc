@@ -8,6 +8,7 @@
 #include <atomic>
 #include <cmath>
 
+#include "absl/strings/str_cat.h"
 #include "mlsreg/client/client.h"
 #include "mlsreg/multiview/align_scans.h"
 #include "mlsreg/wire/align_codec.h"
@@ -230,7 +231,7 @@ TEST_F(AlignScansServiceTest, MalformedHeadersAreRefusedNamingTheFieldAndOthersG
     AlignOptions many = options;
     many.initial_poses.clear();
     std::vector<Scan> scans;
-    for (int i = 0; i <= server::kMaxAlignScans; ++i) scans.push_back({"s" + std::to_string(i)});
+    for (int i = 0; i <= server::kMaxAlignScans; ++i) scans.push_back({absl::StrCat("s", i)});
     cases.push_back({"101 scans", AlignMessages(scans, many), grpc::StatusCode::INVALID_ARGUMENT,
                      "need 2 to 100 scans, got 101"});
   }

@@ -371,5 +371,23 @@ TEST(MetricsTest, RmseOfPureTranslationIsItsLength) {
   EXPECT_NEAR(rotated.rotation_deg, 3.0, 1e-9);
 }
 
+// The rotation error is resolved at every angle: a pose against itself is exactly 0, a turn of
+// 1e-7 degrees reads as such (the arc cosine of the trace alone gives 0 or about 1e-6 there),
+// and so do 90 and 179 degrees.
+TEST(MetricsTest, RotationErrorIsResolvedFromZeroToAHalfTurn) {
+  const std::vector<Vec3> points{Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 5, 0)};
+  for (int seed = 1; seed <= 5; ++seed) {
+    const Matrix4 pose = RandomPerturbation(30.0, 2.0, Vec3(1, 2, 3), seed) *
+                         RandomPerturbation(40.0, 1.0, Vec3::Zero(), 10 + seed);
+    EXPECT_EQ(EvaluatePose(points, pose, pose, 1.0).rotation_deg, 0.0) << seed;
+    for (const double degrees : {1e-7, 1e-3, 90.0, 179.0}) {
+      const Matrix4 turned = RandomPerturbation(degrees, 0.0, Vec3::Zero(), seed) * pose;
+      EXPECT_NEAR(EvaluatePose(points, turned, pose, 1.0).rotation_deg, degrees,
+                  1e-9 + 1e-9 * degrees)
+          << seed << ", " << degrees << " degrees";
+    }
+  }
+}
+
 }  // namespace
 }  // namespace mlsreg

@@ -58,7 +58,7 @@ class SparseIcpStep final : public IcpStep {
  public:
   SparseIcpStep(std::vector<Vec3> samples, SurfaceProperties surface,
                 std::unique_ptr<CorrespondenceFinder> finder, const RegistrationOptions& options,
-                double d, bool drop_first_rejections)
+                double d, bool drop_first_rejections, int threads)
       : record_fates_next_(drop_first_rejections),
         samples_(std::move(samples)),
         surface_(std::move(surface)),
@@ -79,6 +79,7 @@ class SparseIcpStep final : public IcpStep {
     // Sliding is damped once every partner is a foot point: not in a coarse phase, whose far
     // queries are seeded from target samples.
     solver_.set_tangential_weight(finder_->can_refine() ? 0.0 : damping_);
+    solver_.set_threads(threads);
     solver_.Reset(samples_.size());
     residuals_.reserve(samples_.size());
   }
@@ -326,7 +327,7 @@ absl::StatusOr<RegistrationResult> RunSparseIcp(const RegistrationProblem& probl
   }
 
   SparseIcpStep step(std::move(sampled.points), std::move(surface), std::move(finder), options, d,
-                     problem.drop_first_rejections);
+                     problem.drop_first_rejections, problem.threads);
   LoopSettings settings;
   settings.rule = StopRule::kRecentPoses;
   settings.max_iterations = options.max_iterations;

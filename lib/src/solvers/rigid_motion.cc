@@ -75,61 +75,76 @@ Eigen::Matrix<double, 6, 1> SolveConstrainedStep(const Eigen::Matrix<double, 6, 
 RigidTransform PointToPlaneMotion(std::span<const Vec3> x, std::span<const Vec3> y,
                                   std::span<const Vec3> n, std::span<const double> u,
                                   std::span<const double> w, double tangential_weight) {
-  RigidTransform result = RigidTransform::Identity();
   Vec3 mean;
-  if (!WeightedCentroid(x, w, mean)) return result;
-  using Matrix6 = Eigen::Matrix<double, 6, 6>;
-  using Vector6 = Eigen::Matrix<double, 6, 1>;
-  // With J = d(R x + t)/d(omega, t) = [-[xc]x  I] and P = I - n n^T, the tangential term adds
-  // lambda w J^T P J to the normal matrix and lambda w J^T P e to the right side (e = x - y).
-  // Since J^T n is the point-to-plane row r = (xc x n, n):
-  //   J^T P J = J^T J - r r^T,   J^T P e = J^T e - r (n . e),   J^T e = (xc x e, e),
-  // and the sum of J^T J needs only the weighted moments of xc (accumulated below):
-  //   sum lambda w J^T J = [ q I - M   [s]x ]    s = sum lambda w xc, M = sum lambda w xc xc^T,
-  //                        [ -[s]x    s0 I  ]    q = trace(M), s0 = sum lambda w,
-  // where s = lambda sum w xc vanishes: xc is taken about the w-weighted centroid.
-  Matrix6 lhs = Matrix6::Zero();  // lower triangle
-  Vector6 rhs = Vector6::Zero();
-  double s0 = 0.0;
-  Eigen::Matrix3d moments = Eigen::Matrix3d::Zero();  // M, lower triangle
+  if (!WeightedCentroid(x, w, mean)) return RigidTransform::Identity();
+  PointToPlaneSums sums;
   for (std::size_t i = 0; i < x.size(); ++i) {
     if (w[i] <= 0.0) continue;
-    const Vec3 xc = x[i] - mean;
-    Vector6 row;
-    row.head<3>() = xc.cross(n[i]);
-    row.tail<3>() = n[i];
-    const Vec3 e = x[i] - y[i];
-    const double along = e.dot(n[i]);
-    const double tangential = w[i] * tangential_weight;
-    // w r r^T for the plane, minus lambda w r r^T of the tangential term, in one update.
-    const double plane_weight = w[i] - tangential;
-    for (int j = 0; j < 6; ++j) {
-      const double scaled = plane_weight * row[j];
-      for (int k = j; k < 6; ++k) lhs(k, j) += scaled * row[k];
-    }
-    rhs.noalias() -= (w[i] * (along - u[i]) - tangential * along) * row;
-    if (tangential > 0.0) {
-      s0 += tangential;
-      for (int j = 0; j < 3; ++j) {
-        for (int k = j; k < 3; ++k) moments(k, j) += tangential * xc[k] * xc[j];
-      }
-      rhs.head<3>() -= tangential * xc.cross(e);
-      rhs.tail<3>() -= tangential * e;
-    }
+    sums.Add(x[i] - mean, x[i] - y[i], n[i], u[i], w[i], tangential_weight);
   }
-  if (s0 > 0.0) {
+  return sums.Solve(mean);
+}
+
+// With J = d(R x + t)/d(omega, t) = [-[xc]x  I] and P = I - n n^T, the tangential term adds
+// lambda w J^T P J to the normal matrix and lambda w J^T P e to the right side (e = x - y).
+// Since J^T n is the point-to-plane row r = (xc x n, n):
+//   J^T P J = J^T J - r r^T,   J^T P e = J^T e - r (n . e),   J^T e = (xc x e, e),
+// and the sum of J^T J needs only the weighted moments of xc (accumulated below):
+//   sum lambda w J^T J = [ q I - M   [s]x ]    s = sum lambda w xc, M = sum lambda w xc xc^T,
+//                        [ -[s]x    s0 I  ]    q = trace(M), s0 = sum lambda w,
+// where s = lambda sum w xc vanishes: xc is taken about the w-weighted centroid.
+void PointToPlaneSums::Add(const Vec3& xc, const Vec3& e, const Vec3& n, double u, double w,
+                           double tangential_weight) {
+  Eigen::Matrix<double, 6, 1> row;
+  row.head<3>() = xc.cross(n);
+  row.tail<3>() = n;
+  const double along = e.dot(n);
+  const double tangential = w * tangential_weight;
+  // w r r^T for the plane, minus lambda w r r^T of the tangential term, in one update.
+  const double plane_weight = w - tangential;
+  for (int j = 0; j < 6; ++j) {
+    const double scaled = plane_weight * row[j];
+    for (int k = j; k < 6; ++k) lhs(k, j) += scaled * row[k];
+  }
+  rhs.noalias() -= (w * (along - u) - tangential * along) * row;
+  if (tangential > 0.0) {
+    tangential_total += tangential;
+    for (int j = 0; j < 3; ++j) {
+      for (int k = j; k < 3; ++k) moments(k, j) += tangential * xc[k] * xc[j];
+    }
+    rhs.head<3>() -= tangential * xc.cross(e);
+    rhs.tail<3>() -= tangential * e;
+  }
+  ++count;
+}
+
+void PointToPlaneSums::Merge(const PointToPlaneSums& other) {
+  lhs += other.lhs;
+  rhs += other.rhs;
+  moments += other.moments;
+  tangential_total += other.tangential_total;
+  count += other.count;
+}
+
+RigidTransform PointToPlaneSums::Solve(const Vec3& centre) const {
+  using Matrix6 = Eigen::Matrix<double, 6, 6>;
+  using Vector6 = Eigen::Matrix<double, 6, 1>;
+  RigidTransform result = RigidTransform::Identity();
+  if (count == 0) return result;
+  Matrix6 lower = lhs;
+  if (tangential_total > 0.0) {
     const double q = moments.trace();
     for (int j = 0; j < 3; ++j) {
-      for (int k = j; k < 3; ++k) lhs(k, j) += (k == j ? q : 0.0) - moments(k, j);
-      lhs(j + 3, j + 3) += s0;
+      for (int k = j; k < 3; ++k) lower(k, j) += (k == j ? q : 0.0) - moments(k, j);
+      lower(j + 3, j + 3) += tangential_total;
     }
   }
-  const Matrix6 full = lhs.selfadjointView<Eigen::Lower>();
+  const Matrix6 full = lower.selfadjointView<Eigen::Lower>();
   const Vector6 step = SolveConstrainedStep(full, rhs);
-  // x' = R (x - mean) + mean + t
+  // x' = R (x - centre) + centre + t
   const Eigen::Matrix3d rotation = ExpSo3(step.head<3>());
   result.linear() = rotation;
-  result.translation() = mean + step.tail<3>() - rotation * mean;
+  result.translation() = centre + step.tail<3>() - rotation * centre;
   return result;
 }
 

@@ -22,10 +22,12 @@ inline constexpr std::size_t kSumBlock = 128;
 // Returns the sum: for each block, `Accumulator block{}` then add(i, block) for its indices in
 // order; then combine(total, block) for the blocks in order, into `Accumulator total{}`.
 // `partials` is the caller's scratch (one accumulator per block; kept to reuse its memory across
-// calls). `add` must depend only on i and write nothing shared.
+// calls). `add` must depend only on i and write nothing shared. A thread takes at least
+// `min_per_thread` indices (a loop too short for that runs on fewer threads: waking one costs
+// tens of microseconds).
 template <typename Accumulator, typename Add, typename Combine>
 Accumulator ParallelSum(std::size_t n, int threads, std::vector<Accumulator>& partials, Add&& add,
-                        Combine&& combine) {
+                        Combine&& combine, std::size_t min_per_thread = kSumBlock) {
   const std::size_t blocks = (n + kSumBlock - 1) / kSumBlock;
   partials.resize(blocks);
   ParallelFor(
@@ -38,7 +40,7 @@ Accumulator ParallelSum(std::size_t n, int threads, std::vector<Accumulator>& pa
           partials[b] = block;
         }
       },
-      1);
+      std::max<std::size_t>(1, min_per_thread / kSumBlock));
   Accumulator total{};
   for (const Accumulator& block : partials) combine(total, block);
   return total;

@@ -43,4 +43,23 @@ RigidTransform PointToPlaneMotion(std::span<const Vec3> x, std::span<const Vec3>
                                   std::span<const Vec3> n, std::span<const double> u,
                                   std::span<const double> w, double tangential_weight = 0.0);
 
+// The sums PointToPlaneMotion solves, about a centre c given in advance (its weighted centroid
+// of x there): added one correspondence at a time, in any blocks (Merge adds another block's),
+// then solved. What lets a solver build them on several threads, and in the same pass that
+// makes the correspondences' targets.
+struct PointToPlaneSums {
+  Eigen::Matrix<double, 6, 6> lhs = Eigen::Matrix<double, 6, 6>::Zero();  // lower triangle
+  Eigen::Matrix<double, 6, 1> rhs = Eigen::Matrix<double, 6, 1>::Zero();
+  Eigen::Matrix3d moments = Eigen::Matrix3d::Zero();  // the tangential term's, lower triangle
+  double tangential_total = 0.0;
+  int count = 0;
+
+  // One correspondence: xc = x - c, e = x - y, its normal n, target offset u and weight w > 0.
+  void Add(const Vec3& xc, const Vec3& e, const Vec3& n, double u, double w,
+           double tangential_weight);
+  void Merge(const PointToPlaneSums& other);
+  // The motion about `centre` (identity when nothing was added).
+  RigidTransform Solve(const Vec3& centre) const;
+};
+
 }  // namespace mlsreg

@@ -64,6 +64,9 @@ class SparseIcpSolver {
     options_.stop = stop;
   }
 
+  // Threads the point-to-plane ADMM's passes run on (the result is the same for any count).
+  void set_threads(int threads) { threads_ = threads; }
+
   // Forget the Lagrange multipliers (a new registration with `samples` source samples).
   void Reset(std::size_t samples);
 
@@ -79,6 +82,9 @@ class SparseIcpSolver {
 
  private:
   RigidTransform StepPointToPlane(std::span<const std::uint8_t> active);
+  // The point-to-plane ADMM of one rigid step per iteration (max_inner = 1, the default) in one
+  // pass over the samples per iteration (see sparse_icp.cc).
+  RigidTransform RunPointToPlaneAdmmInOnePass(std::span<const std::uint8_t> active);
   RigidTransform StepPointToPoint(std::span<const std::uint8_t> active);
   template <typename Metric, typename RigidStep>
   RigidTransform RunAdmm(std::span<const std::uint8_t> active,
@@ -86,8 +92,17 @@ class SparseIcpSolver {
                          std::vector<typename Metric::Residual>& z,
                          std::vector<typename Metric::Residual>& shifted, RigidStep rigid_step);
 
+  // One block's part of a pass of RunPointToPlaneAdmmInOnePass: the next step's sums, and the
+  // largest motion (dual) and constraint residual (primal) of its samples.
+  struct PassSums {
+    PointToPlaneSums motion;
+    double dual = 0.0, primal = 0.0;
+  };
+
   SparseIcpOptions options_;
+  int threads_ = 1;
   int last_outer_ = 0;
+  std::vector<PassSums> pass_partials_;  // per block of samples (ParallelSum)
   // Per-sample state and scratch (solver units); sized once per registration.
   std::vector<double> multiplier1_, z1_, u1_, weight_;
   std::vector<Vec3> multiplier3_, z3_, target3_, xs_, qs_, ns_, previous_;
