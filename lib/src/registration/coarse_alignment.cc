@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "gauss_newton_sums.h"
 #include "icp_loop.h"
 #include "mlsreg/core/parallel_for.h"
 #include "mlsreg/core/parallel_sum.h"
@@ -40,16 +41,16 @@ class VoxelPlaneStep final : public IcpStep {
     const double kernel_squared = std::pow(kKernelPerCapture * capture_, 2);
     // Each sample's nearest voxel and its terms of the normal equations, on the threads, summed
     // in fixed blocks of samples (ParallelSum): the step is the same for any thread count.
-    const NormalEquations sums = ParallelSum(
+    const GaussNewtonSums sums = ParallelSum(
         samples_.size(), threads_, partial_sums_,
-        [&](std::size_t i, NormalEquations& block) {
+        [&](std::size_t i, GaussNewtonSums& block) {
           const Vec3 previous = previous_[i];
           const Vec3 x = pose * samples_[i];
           previous_[i] = x;
           const Neighbor nn =
               TravellingNearest(*target_.tree, target_.points, x, previous, nearest_[i]);
           if (nn.distance_squared > capture_squared) {
-            ++block.far;
+            ++block.too_far;
             return;
           }
           if (!target_.valid[nn.index]) {
@@ -68,13 +69,10 @@ class VoxelPlaneStep final : public IcpStep {
           block.sum_squared += r * r;
           ++block.matched;
         },
-        [](NormalEquations& total, const NormalEquations& block) { total.Add(block); });
+        [](GaussNewtonSums& total, const GaussNewtonSums& block) { total.Add(block); });
     h_ = sums.h;
     g_ = sums.g;
-    report.counts.rejected_distance += sums.far;
-    report.counts.invalid += sums.invalid;
-    report.counts.matched += sums.matched;
-    SetRmse(report, sums.sum_squared, d_);
+    sums.Report(report, d_);
     return true;
   }
 
@@ -94,28 +92,12 @@ class VoxelPlaneStep final : public IcpStep {
   const VoxelCloud& target_;
   const std::vector<Vec3>& samples_;
   double capture_, final_capture_;
-  // The samples' terms of the normal equations over a block of samples, or over all, with the
-  // matches counted.
-  struct NormalEquations {
-    Matrix6 h = Matrix6::Zero();
-    Vector6 g = Vector6::Zero();
-    double sum_squared = 0.0;
-    int matched = 0, far = 0, invalid = 0;
-    void Add(const NormalEquations& other) {
-      h += other.h;
-      g += other.g;
-      sum_squared += other.sum_squared;
-      matched += other.matched;
-      far += other.far;
-      invalid += other.invalid;
-    }
-  };
   double d_;
   int threads_;
   // Per sample: the target voxels nearest its last position (an iteration moves it by little).
   std::vector<NeighborCache<8>> nearest_;
   std::vector<Vec3> previous_;                 // per sample, where the last iteration put it
-  std::vector<NormalEquations> partial_sums_;  // per block of samples (ParallelSum)
+  std::vector<GaussNewtonSums> partial_sums_;  // per block of samples (ParallelSum)
   Matrix6 h_;
   Vector6 g_;
 };

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <optional>
 
+#include "gauss_newton_sums.h"
 #include "icp_loop.h"
 #include "method_runners.h"
 #include "mlsreg/core/parallel_for.h"
@@ -21,6 +22,7 @@ namespace mlsreg {
 namespace {
 
 using internal::Clock;
+using internal::GaussNewtonSums;
 using internal::Seconds;
 
 Eigen::Matrix3d Skew(const Vec3& v) {
@@ -149,9 +151,9 @@ class GicpStep final : public internal::IcpStep {
     // blocks of samples that do not depend on the thread count (ParallelSum): the same sums for
     // any thread count.
     const Eigen::Matrix3d r = pose.linear();
-    const NormalEquations sums = ParallelSum(
+    const GaussNewtonSums sums = ParallelSum(
         n, threads_, partial_sums_,
-        [&](std::size_t i, NormalEquations& block) {
+        [&](std::size_t i, GaussNewtonSums& block) {
           PairTerms terms;
           const Verdict verdict = Judge(i, r, terms);
           if (verdict == Verdict::kInvalid) {
@@ -165,14 +167,10 @@ class GicpStep final : public internal::IcpStep {
             ++block.matched;
           }
         },
-        [](NormalEquations& total, const NormalEquations& block) { total.Add(block); });
+        [](GaussNewtonSums& total, const GaussNewtonSums& block) { total.Add(block); });
     h_ = sums.h;
     g_ = sums.g;
-    report.counts.invalid += sums.invalid;
-    report.counts.rejected_distance += sums.too_far;
-    report.counts.matched += sums.matched;
-    const double sum_squared = sums.sum_squared;
-    internal::SetRmse(report, sum_squared, target_.sampling_distance());
+    sums.Report(report, target_.sampling_distance());
     return true;
   }
 
@@ -208,21 +206,6 @@ class GicpStep final : public internal::IcpStep {
     Vector6 gradient;
     double residual_squared = 0.0;
   };
-  // The pairs' terms summed over a block of samples, or over all, with the verdicts counted.
-  struct NormalEquations {
-    Matrix6 h = Matrix6::Zero();
-    Vector6 g = Vector6::Zero();
-    double sum_squared = 0.0;
-    int matched = 0, too_far = 0, invalid = 0;
-    void Add(const NormalEquations& other) {
-      h += other.h;
-      g += other.g;
-      sum_squared += other.sum_squared;
-      matched += other.matched;
-      too_far += other.too_far;
-      invalid += other.invalid;
-    }
-  };
 
   // Sample i's verdict and, when matched, its terms into `terms` (r: the pose's rotation).
   Verdict Judge(std::size_t i, const Eigen::Matrix3d& r, PairTerms& terms) const {
@@ -257,7 +240,7 @@ class GicpStep final : public internal::IcpStep {
   std::vector<Eigen::Matrix3d> source_cov_;
   std::vector<std::uint8_t> source_ok_;
   std::vector<Pair> pairs_;
-  std::vector<NormalEquations> partial_sums_;     // per block of samples (ParallelSum)
+  std::vector<GaussNewtonSums> partial_sums_;     // per block of samples (ParallelSum)
   std::vector<NeighborCache<8>> nearest_caches_;  // per sample, the target points near it
   // Per target point its TargetSlot; per matched one its plane, in the order first matched (a
   // registration meets a fraction of the target: dense slots keep the pages it never touches
