@@ -162,16 +162,17 @@ RigidTransform SparseIcpSolver::RunAdmm(std::span<const std::uint8_t> active,
   return total;
 }
 
+// A pass of the ADMM below costs about 30 ns a sample: below this many per thread, waking a
+// thread for it costs more than it saves (BM_MlsSicpThreads, 2026-12-07: every pass on two
+// threads made it slower).
+constexpr std::size_t kMinSamplesPerThread = 4096;
+
 // With one rigid step per iteration, what the iteration does to a sample (move it by the last
 // step, update its multiplier, shrink its residual for the next step, add its terms to the next
 // step's normal equations) needs that sample alone and the step, so it is one pass over the
 // samples, on the threads, summed in fixed blocks (ParallelSum: the same for any thread count).
 // The steps linearise the rotation about the samples' centroid, which each step moves rigidly
 // with them. The same iteration as RunAdmm, up to the rounding of the sums.
-// A pass costs about 30 ns a sample: below this many per thread, waking a thread for it costs
-// more than it saves (BM_MlsSicpThreads, 2026-12-07: every pass on two threads made it slower).
-constexpr std::size_t kMinSamplesPerThread = 4096;
-
 RigidTransform SparseIcpSolver::RunPointToPlaneAdmmInOnePass(std::span<const std::uint8_t> active) {
   const std::size_t m = xs_.size();
   const double lambda = options_.tangential_weight;
@@ -181,19 +182,14 @@ RigidTransform SparseIcpSolver::RunPointToPlaneAdmmInOnePass(std::span<const std
     total.primal = std::max(total.primal, block.primal);
   };
   // The active samples' centroid (their weights are 1).
-  struct Centroid {
-    Vec3 sum = Vec3::Zero();
-    std::size_t count = 0;
-  };
-  std::vector<Centroid> centroid_partials;
-  const Centroid sum = ParallelSum(
-      m, threads_, centroid_partials,
-      [&](std::size_t i, Centroid& block) {
+  const CentroidSums sum = ParallelSum(
+      m, threads_, centroid_partials_,
+      [&](std::size_t i, CentroidSums& block) {
         if (!active[i]) return;
         block.sum += xs_[i];
         ++block.count;
       },
-      [](Centroid& total, const Centroid& block) {
+      [](CentroidSums& total, const CentroidSums& block) {
         total.sum += block.sum;
         total.count += block.count;
       },

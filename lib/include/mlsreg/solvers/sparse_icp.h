@@ -98,11 +98,16 @@ class SparseIcpSolver {
     PointToPlaneSums motion;
     double dual = 0.0, primal = 0.0;
   };
+  struct CentroidSums {
+    Vec3 sum = Vec3::Zero();
+    std::size_t count = 0;
+  };
 
   SparseIcpOptions options_;
   int threads_ = 1;
   int last_outer_ = 0;
   std::vector<PassSums> pass_partials_;  // per block of samples (ParallelSum)
+  std::vector<CentroidSums> centroid_partials_;
   // Per-sample state and scratch (solver units); sized once per registration.
   std::vector<double> multiplier1_, z1_, u1_, weight_;
   std::vector<Vec3> multiplier3_, z3_, target3_, xs_, qs_, ns_, previous_;
