@@ -421,6 +421,51 @@ void BM_LidarOneShot(benchmark::State& state) {
 }
 BENCHMARK(BM_LidarOneShot)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
+// One verification with 1 or 2 threads (second argument), as Register runs it (the source
+// measured, then its working voxels scored; the target's patches fitted by the first run and
+// kept, as on a served target). First argument 0: the bunny pair at its true pose; 1: the KITTI
+// pair at the pose method auto reaches from the prior (its recorded truth is good to a few cm,
+// which the verdict resolves), skipped when the data is not there.
+struct VerifyProblem {
+  std::shared_ptr<const Target> target;
+  const PointCloud* source = nullptr;
+  Matrix4 pose = Matrix4::Identity();
+};
+
+const VerifyProblem& KittiVerifyProblem() {
+  static const VerifyProblem problem = [] {
+    VerifyProblem p;
+    if (!Kitti().found) return p;
+    p.target = *Target::Build(Kitti().target);
+    p.source = &Kitti().source;
+    p.pose = Register(*p.target, Kitti().source, Kitti().prior, RegistrationOptions{})->transform;
+    return p;
+  }();
+  return problem;
+}
+
+void BM_VerifyThreads(benchmark::State& state) {
+  const bool lidar = state.range(0) == 1;
+  if (lidar && !Kitti().found) {
+    state.SkipWithError("../shared/data/real/kitti00_f0000-0015 not found");
+    return;
+  }
+  const VerifyProblem p =
+      lidar ? KittiVerifyProblem() : VerifyProblem{Pair().target, &Pair().source, Pair().truth};
+  const int threads = static_cast<int>(state.range(1));
+  VerificationScore score;
+  for (auto _ : state) {
+    score = VerifyPose(*p.target, *p.source, p.pose, threads);
+    benchmark::DoNotOptimize(score);
+  }
+  state.counters["samples"] = score.samples;
+  state.SetLabel(std::string(VerdictName(score.verdict)));
+}
+BENCHMARK(BM_VerifyThreads)
+    ->ArgsProduct({{0, 1}, {1, 2}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
 // Adversarial inputs: a cluster of 40,000 identical points (plus two outliers), which made every
 // neighbourhood the whole cloud. Argument 0: the whole target build; 1: the same build told to
 // stop once it started, timing how long the worker stays busy after the request (the
