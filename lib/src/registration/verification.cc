@@ -8,7 +8,9 @@
 #include <optional>
 
 #include "absl/strings/str_format.h"
+#include "gauss_newton_sums.h"
 #include "mlsreg/core/parallel_for.h"
+#include "mlsreg/core/parallel_sum.h"
 #include "mlsreg/core/quantile.h"
 #include "mlsreg/geometry/cloud_scales.h"
 #include "mlsreg/geometry/neighbor_cache.h"
@@ -21,6 +23,7 @@ namespace {
 
 using Vector6 = Eigen::Matrix<double, 6, 1>;
 using Matrix6 = Eigen::Matrix<double, 6, 6>;
+using internal::GaussNewtonSums;
 
 double Squared(double x) { return x * x; }
 
@@ -50,9 +53,11 @@ using SampleCaches = VerificationCaches::Sample;
 
 // Where each sample landed in the last pass: the voxel coverage test, and the surface hit.
 struct SampleHit {
-  Vec3 x = Vec3::Zero();  // the sample under the pass's pose
-  bool covered = false;   // a target voxel within the coverage distance
-  SurfaceHit hit;         // where it meets the surface (covered samples)
+  Vec3 x = Vec3::Zero();      // the sample under the pass's pose
+  bool covered = false;       // a target voxel within the coverage distance
+  bool hidden = false;        // not covered, where the target's sensor could not see
+  bool seen_through = false;  // not hidden, where the target's sensor saw through it
+  SurfaceHit hit;             // where it meets the surface (covered samples)
 };
 
 // The target's surface near `x`: its MLS projection where the patches reach; else the plane
@@ -117,21 +122,34 @@ SurfaceHit HitSurface(const Target& target, const Vec3& x, std::uint32_t voxel,
   return hit;
 }
 
-// Every sample under `pose`, in parallel (each with its own caches): the passes below then sum
-// over the samples in their order, so that the verdict is the same for any thread count.
-void HitSamples(const Target& target, std::span<const Vec3> points, const RigidTransform& pose,
-                double coverage, std::span<SampleCaches> caches, std::span<SampleHit> hits,
-                int threads) {
+// One sample under `pose`: its coverage and, when covered, where it meets the surface; with the
+// target's sensor `view` (the first pass), also whether that sensor hides it or saw through it.
+SampleHit HitSample(const Target& target, const Vec3& point, const RigidTransform& pose,
+                    double coverage, const SensorView* view, SampleCaches& caches) {
   const VoxelCloud& voxels = target.voxel_cloud();
+  SampleHit h;
+  h.x = pose * point;
+  const Neighbor voxel = CachedNearest(*voxels.tree, voxels.points, h.x, caches.voxels);
+  h.covered = voxel.distance_squared <= coverage * coverage;
+  if (view != nullptr) {
+    h.hidden = !h.covered && view->Hides(h.x, coverage);
+    h.seen_through = !h.hidden && view->SeesThrough(h.x, coverage);
+  }
+  if (h.covered) h.hit = HitSurface(target, h.x, voxel.index, caches);
+  return h;
+}
+
+// Every sample under `pose`, in parallel (each with its own caches): the passes below then sum
+// over the samples in fixed blocks (ParallelSum), so that the verdict is the same for any thread
+// count.
+void HitSamples(const Target& target, std::span<const Vec3> points, const RigidTransform& pose,
+                double coverage, const SensorView* view, std::span<SampleCaches> caches,
+                std::span<SampleHit> hits, int threads) {
   ParallelFor(
       points.size(), threads,
       [&](std::size_t begin, std::size_t end, int) {
         for (std::size_t i = begin; i < end; ++i) {
-          SampleHit& h = hits[i];
-          h.x = pose * points[i];
-          const Neighbor voxel = CachedNearest(*voxels.tree, voxels.points, h.x, caches[i].voxels);
-          h.covered = voxel.distance_squared <= coverage * coverage;
-          if (h.covered) h.hit = HitSurface(target, h.x, voxel.index, caches[i]);
+          hits[i] = HitSample(target, points[i], pose, coverage, view, caches[i]);
         }
       },
       64);
@@ -152,6 +170,10 @@ Vector6 SolveStep(const Matrix6& normal_matrix, const Vector6& gradient) {
   return (normal_matrix + ridge * Matrix6::Identity()).ldlt().solve(-gradient);
 }
 
+// A light sum (a few flops a sample) goes on a second thread only above this many samples a
+// thread: waking a worker costs tens of microseconds.
+constexpr std::size_t kMinSumsPerThread = 4096;
+
 // How a pull's residual across the target's plane changes under a step (rotation about `centre`
 // in units of `lever`, then translation): residual + J . step.
 Vector6 StepJacobian(const Pull& p, const Vec3& centre, double lever) {
@@ -166,28 +188,34 @@ Vector6 StepJacobian(const Pull& p, const Vec3& centre, double lever) {
 // At a right pose the residuals are noise, and a rigid motion explains about 6 / inliers of them;
 // a pose turned or slid off the truth leaves residuals that one motion explains well.
 // Returns the step (zero when there is none).
-Vector6 MeasurePull(std::span<const Pull> pulls, const Vec3& centre, double lever,
+Vector6 MeasurePull(std::span<const Pull> pulls, const Vec3& centre, double lever, int threads,
                     VerificationScore& score) {
   if (pulls.size() < 12) return Vector6::Zero();
-  Matrix6 normal_matrix = Matrix6::Zero();
-  Vector6 gradient = Vector6::Zero();
-  double sum_squared = 0.0;
-  for (const Pull& p : pulls) {
-    const Vector6 j = StepJacobian(p, centre, lever);
-    normal_matrix.noalias() += j * j.transpose();
-    gradient += j * p.across;
-    sum_squared += p.across * p.across;
-  }
-  if (!(sum_squared > 0.0)) return Vector6::Zero();
-  const Vector6 step = SolveStep(normal_matrix, gradient);
-  score.pull_fraction = std::clamp(-gradient.dot(step) / sum_squared, 0.0, 1.0);
+  std::vector<GaussNewtonSums> partials;
+  const GaussNewtonSums sums = ParallelSum(
+      pulls.size(), threads, partials,
+      [&](std::size_t i, GaussNewtonSums& block) {
+        const Pull& p = pulls[i];
+        const Vector6 j = StepJacobian(p, centre, lever);
+        block.h.noalias() += j * j.transpose();
+        block.g += j * p.across;
+        block.sum_squared += p.across * p.across;
+      },
+      [](GaussNewtonSums& total, const GaussNewtonSums& block) { total.Add(block); },
+      kMinSumsPerThread);
+  if (!(sums.sum_squared > 0.0)) return Vector6::Zero();
+  const Vector6 step = SolveStep(sums.h, sums.g);
+  score.pull_fraction = std::clamp(-sums.g.dot(step) / sums.sum_squared, 0.0, 1.0);
   score.pull_rotation_deg = step.head<3>().norm() / lever * 180.0 / M_PI;
   score.pull_translation = step.tail<3>().norm();
-  double displacement_squared = 0.0;
-  for (const Pull& p : pulls) {
-    displacement_squared +=
-        ((step.head<3>() / lever).cross(p.x - centre) + step.tail<3>()).squaredNorm();
-  }
+  std::vector<double> displacement_partials;
+  const double displacement_squared = ParallelSum(
+      pulls.size(), threads, displacement_partials,
+      [&](std::size_t i, double& block) {
+        block +=
+            ((step.head<3>() / lever).cross(pulls[i].x - centre) + step.tail<3>()).squaredNorm();
+      },
+      [](double& total, double block) { total += block; }, kMinSumsPerThread);
   score.pull_displacement = std::sqrt(displacement_squared / pulls.size());
   return step;
 }
@@ -212,53 +240,55 @@ SharedResiduals MeasureSharedResiduals(std::span<const Pull> pulls, double radiu
                                        int threads) {
   SharedResiduals out;
   if (pulls.size() < kMinSharedResidualSamples) return out;
-  std::vector<Vec3> positions;
-  std::vector<double> residuals;
-  std::vector<Vector6> gradients;  // J_i r_i
-  positions.reserve(pulls.size());
-  residuals.reserve(pulls.size());
-  gradients.reserve(pulls.size());
-  for (const Pull& p : pulls) {
-    const Vector6 j = StepJacobian(p, centre, lever);
-    positions.push_back(p.x);
-    residuals.push_back(p.across + j.dot(step));
-    gradients.push_back(j * residuals.back());
-  }
-  const KdTree tree(positions, threads);
-  constexpr int kNeighbours = 7;  // the sample itself and six others
-  // Each sample's products with its neighbours in parallel, summed in sample order after: the
-  // same value for any thread count.
-  std::vector<double> products(pulls.size(), 0.0);
-  std::vector<Vector6> neighbour_gradients(pulls.size(), Vector6::Zero());
-  std::vector<std::uint8_t> pair_counts(pulls.size(), 0);
+  std::vector<Vec3> positions(pulls.size());
+  std::vector<double> residuals(pulls.size());  // after the step
   ParallelFor(
       pulls.size(), threads,
       [&](std::size_t begin, std::size_t end, int) {
-        std::uint32_t index[kNeighbours];
-        double distance_squared[kNeighbours];
         for (std::size_t i = begin; i < end; ++i) {
-          const std::size_t found = tree.Knn(pulls[i].x, kNeighbours, index, distance_squared);
-          for (std::size_t k = 0; k < found; ++k) {
-            const std::uint32_t j = index[k];
-            if (j == i || distance_squared[k] > radius * radius) continue;
-            const double sign = pulls[i].normal.dot(pulls[j].normal) < 0.0 ? -1.0 : 1.0;
-            products[i] += residuals[i] * sign * residuals[j];
-            neighbour_gradients[i] += gradients[j];
-            ++pair_counts[i];
-          }
+          positions[i] = pulls[i].x;
+          residuals[i] = pulls[i].across + StepJacobian(pulls[i], centre, lever).dot(step);
         }
       },
-      256);
-  double sum = 0.0;
-  long pairs = 0;
-  Matrix6 spread = Matrix6::Zero();
-  for (std::size_t i = 0; i < pulls.size(); ++i) {
-    sum += products[i];
-    pairs += pair_counts[i];
-    spread.noalias() += gradients[i] * (gradients[i] + neighbour_gradients[i]).transpose();
-  }
-  out.coherent = pairs > 0 ? std::sqrt(std::max(0.0, sum / pairs)) : 0.0;
-  out.gradient_spread = 0.5 * (spread + spread.transpose());
+      kMinSumsPerThread);
+  const auto gradient = [&](std::size_t i) -> Vector6 {  // J_i r_i
+    return StepJacobian(pulls[i], centre, lever) * residuals[i];
+  };
+  const KdTree tree(positions, threads);
+  constexpr int kNeighbours = 7;  // the sample itself and six others
+  // Each sample's products with its neighbours, summed in fixed blocks of samples on the threads
+  // (ParallelSum): the same value for any thread count.
+  struct Sums {
+    double products = 0.0;
+    long pairs = 0;
+    Matrix6 spread = Matrix6::Zero();
+  };
+  std::vector<Sums> partials;
+  const Sums sums = ParallelSum(
+      pulls.size(), threads, partials,
+      [&](std::size_t i, Sums& block) {
+        std::uint32_t index[kNeighbours];
+        double distance_squared[kNeighbours];
+        const std::size_t found = tree.Knn(pulls[i].x, kNeighbours, index, distance_squared);
+        Vector6 neighbour_gradients = Vector6::Zero();
+        for (std::size_t k = 0; k < found; ++k) {
+          const std::uint32_t j = index[k];
+          if (j == i || distance_squared[k] > radius * radius) continue;
+          const double sign = pulls[i].normal.dot(pulls[j].normal) < 0.0 ? -1.0 : 1.0;
+          block.products += residuals[i] * sign * residuals[j];
+          neighbour_gradients += gradient(j);
+          ++block.pairs;
+        }
+        const Vector6 own = gradient(i);
+        block.spread.noalias() += own * (own + neighbour_gradients).transpose();
+      },
+      [](Sums& total, const Sums& block) {
+        total.products += block.products;
+        total.pairs += block.pairs;
+        total.spread += block.spread;
+      });
+  out.coherent = sums.pairs > 0 ? std::sqrt(std::max(0.0, sums.products / sums.pairs)) : 0.0;
+  out.gradient_spread = 0.5 * (sums.spread + sums.spread.transpose());
   return out;
 }
 
@@ -305,26 +335,31 @@ Settling Settle(const Target& target, std::span<const Vec3> points,
   settling.one_scan_lines_corrected =
       on_one_line > 0 && settling.one_scan_line_share <= kMaxOneScanLineShare;
   RigidTransform current = pose;
+  std::vector<GaussNewtonSums> partials;
   for (int step_index = 0; step_index < kSettleSteps; ++step_index) {
-    Matrix6 normal_matrix = Matrix6::Zero();
-    Vector6 gradient = Vector6::Zero();
-    int used = 0;
-    if (step_index > 0) HitSamples(target, points, current, coverage, caches, hits, threads);
-    for (const SampleHit& sample : hits) {
-      if (!settles(sample)) continue;
-      const Vec3& x = sample.x;
-      const SurfaceHit& hit = sample.hit;
-      const bool corrected = settling.one_scan_lines_corrected && hit.settle_normal;
-      const Vec3& normal = corrected ? *hit.settle_normal : hit.normal;
-      Vector6 j;
-      j.head<3>() = (x - centre).cross(normal) / lever;
-      j.tail<3>() = normal;
-      normal_matrix.noalias() += j * j.transpose();
-      gradient += j * (corrected ? hit.settle_across : hit.across);
-      ++used;
-    }
-    if (used < 12) break;
-    const Vector6 step = SolveStep(normal_matrix, gradient);
+    // Each sample where the step before moved it (the first step: where `pose` put it), and its
+    // terms of the step's normal equations, in fixed blocks on the threads.
+    const GaussNewtonSums sums = ParallelSum(
+        points.size(), threads, partials,
+        [&](std::size_t i, GaussNewtonSums& block) {
+          if (step_index > 0) {
+            hits[i] = HitSample(target, points[i], current, coverage, nullptr, caches[i]);
+          }
+          const SampleHit& sample = hits[i];
+          if (!settles(sample)) return;
+          const SurfaceHit& hit = sample.hit;
+          const bool corrected = settling.one_scan_lines_corrected && hit.settle_normal;
+          const Vec3& normal = corrected ? *hit.settle_normal : hit.normal;
+          Vector6 j;
+          j.head<3>() = (sample.x - centre).cross(normal) / lever;
+          j.tail<3>() = normal;
+          block.h.noalias() += j * j.transpose();
+          block.g += j * (corrected ? hit.settle_across : hit.across);
+          ++block.matched;
+        },
+        [](GaussNewtonSums& total, const GaussNewtonSums& block) { total.Add(block); });
+    if (sums.matched < 12) break;
+    const Vector6 step = SolveStep(sums.h, sums.g);
     const Vec3 omega = step.head<3>() / lever;
     RigidTransform increment = RigidTransform::Identity();
     increment.linear() = ExpSo3(omega);
@@ -332,14 +367,24 @@ Settling Settle(const Target& target, std::span<const Vec3> points,
     current = increment * current;
     if (step.norm() < tolerance) break;  // rotations in units of the lever: a sample's motion
   }
-  double sum = 0.0;
-  int count = 0;
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    if (state[i] != 2) continue;
-    sum += (current * points[i] - pose * points[i]).squaredNorm();
-    ++count;
-  }
-  settling.displacement = count > 0 ? std::sqrt(sum / count) : 0.0;
+  struct Displacement {
+    double sum_squared = 0.0;
+    int count = 0;
+  };
+  std::vector<Displacement> displacement_partials;
+  const Displacement moved = ParallelSum(
+      points.size(), threads, displacement_partials,
+      [&](std::size_t i, Displacement& block) {
+        if (state[i] != 2) return;
+        block.sum_squared += (current * points[i] - pose * points[i]).squaredNorm();
+        ++block.count;
+      },
+      [](Displacement& total, const Displacement& block) {
+        total.sum_squared += block.sum_squared;
+        total.count += block.count;
+      },
+      kMinSumsPerThread);
+  settling.displacement = moved.count > 0 ? std::sqrt(moved.sum_squared / moved.count) : 0.0;
   settling.pose = current.matrix();
   return settling;
 }
@@ -508,48 +553,79 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   }
   const std::span<SampleCaches> caches(cached.samples);
   std::vector<SampleHit> hits(points.size());
-  std::vector<Pull> pulls;  // the inliers' residuals across the target's local planes
-  pulls.reserve(points.size());
-  double sum_squared = 0.0, sum_normalised = 0.0, sum_band = 0.0;
-  Vec3 centre = Vec3::Zero();
-  HitSamples(target, points, pose, coverage, caches, hits, threads);
   const SensorView* view = target.sensor_view();
+  HitSamples(target, points, pose, coverage, view, caches, hits, threads);
   // Both sensors, in the target's frame, when both are known.
   const bool judges_sides = view != nullptr && samples.sensor.has_value();
   const Vec3 target_sensor = judges_sides ? target.scales().sensor->position : Vec3::Zero();
   const Vec3 source_sensor = judges_sides ? Vec3(pose * *samples.sensor) : Vec3::Zero();
   const double min_side_sine = std::sin(options.min_side_view_angle_deg * M_PI / 180.0);
+  struct AgreementSums {
+    int hidden = 0, seen_through = 0, covered = 0, inliers = 0;
+    int sides_judged = 0, seen_from_behind = 0;
+    double sum_squared = 0.0, sum_normalised = 0.0, sum_band = 0.0;
+    Vec3 covered_sum = Vec3::Zero();
+  };
+  std::vector<AgreementSums> agreement_partials;
+  const AgreementSums agreement = ParallelSum(
+      points.size(), threads, agreement_partials,
+      [&](std::size_t i, AgreementSums& block) {
+        const SampleHit& sample = hits[i];
+        block.hidden += sample.hidden;
+        block.seen_through += sample.seen_through;
+        if (!sample.covered) return;
+        const Vec3& x = sample.x;
+        state[i] = 1;
+        ++block.covered;
+        block.covered_sum += x;
+        const SurfaceHit& hit = sample.hit;
+        target_normals[i] = hit.normal;
+        const double local_band = band_of(hit);
+        if (hit.distance > local_band) return;
+        state[i] = 2;
+        ++block.inliers;
+        block.sum_squared += hit.distance * hit.distance;
+        block.sum_normalised += Squared(hit.distance / local_band);
+        block.sum_band += local_band;
+        if (!judges_sides || !(hit.normal.squaredNorm() > 0.0)) return;
+        const double target_side = hit.normal.dot(target_sensor - x);
+        const double source_side = hit.normal.dot(source_sensor - x);
+        if (std::abs(target_side) >
+                std::max(local_band, min_side_sine * (target_sensor - x).norm()) &&
+            std::abs(source_side) >
+                std::max(local_band, min_side_sine * (source_sensor - x).norm())) {
+          ++block.sides_judged;
+          block.seen_from_behind += (target_side > 0.0) != (source_side > 0.0);
+        }
+      },
+      [](AgreementSums& total, const AgreementSums& block) {
+        total.hidden += block.hidden;
+        total.seen_through += block.seen_through;
+        total.covered += block.covered;
+        total.inliers += block.inliers;
+        total.sides_judged += block.sides_judged;
+        total.seen_from_behind += block.seen_from_behind;
+        total.sum_squared += block.sum_squared;
+        total.sum_normalised += block.sum_normalised;
+        total.sum_band += block.sum_band;
+        total.covered_sum += block.covered_sum;
+      },
+      kMinSumsPerThread);
+  score.hidden = agreement.hidden;
+  score.seen_through = agreement.seen_through;
+  score.covered = agreement.covered;
+  score.inliers = agreement.inliers;
+  score.sides_judged = agreement.sides_judged;
+  score.seen_from_behind = agreement.seen_from_behind;
+  const double sum_squared = agreement.sum_squared;
+  Vec3 centre = agreement.covered_sum;
+  // The inliers' residuals across the target's local planes, in sample order.
+  std::vector<Pull> pulls;
+  pulls.reserve(score.inliers);
   for (std::size_t i = 0; i < points.size(); ++i) {
-    if (!hits[i].covered && view && view->Hides(hits[i].x, coverage)) {
-      ++score.hidden;
-      continue;
-    }
-    if (view && view->SeesThrough(hits[i].x, coverage)) ++score.seen_through;
-    if (!hits[i].covered) continue;
-    const Vec3& x = hits[i].x;
-    state[i] = 1;
-    ++score.covered;
-    centre += x;
     const SurfaceHit& hit = hits[i].hit;
-    target_normals[i] = hit.normal;
-    const double local_band = band_of(hit);
-    if (hit.distance > local_band) continue;
-    state[i] = 2;
-    ++score.inliers;
-    sum_squared += hit.distance * hit.distance;
-    sum_normalised += Squared(hit.distance / local_band);
-    sum_band += local_band;
-    if (hit.normal.squaredNorm() > 0.0) pulls.push_back({x, hit.normal, hit.across});
-    if (judges_sides && hit.normal.squaredNorm() > 0.0) {
-      const double target_side = hit.normal.dot(target_sensor - x);
-      const double source_side = hit.normal.dot(source_sensor - x);
-      if (std::abs(target_side) >
-              std::max(local_band, min_side_sine * (target_sensor - x).norm()) &&
-          std::abs(source_side) >
-              std::max(local_band, min_side_sine * (source_sensor - x).norm())) {
-        ++score.sides_judged;
-        score.seen_from_behind += (target_side > 0.0) != (source_side > 0.0);
-      }
+    if (state[i] == 2 && hit.normal.squaredNorm() > 0.0) {
+      pulls.push_back({hits[i].x, hit.normal, hit.across});
     }
   }
   if (score.covered > 0) {
@@ -561,21 +637,24 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   double rms_per_band = 1.0;
   if (score.inliers > 0) {
     score.rmse_d = std::sqrt(sum_squared / score.inliers) / d;
-    rms_per_band = std::sqrt(sum_normalised / score.inliers);
+    rms_per_band = std::sqrt(agreement.sum_normalised / score.inliers);
     score.residual_scale = rms_per_band * options.band_per_noise / kTruncatedGaussianRms;
-    score.inlier_distance = sum_band / score.inliers;  // the mean band of the inliers
+    score.inlier_distance = agreement.sum_band / score.inliers;  // the mean band of the inliers
     score.inlier_distance_d = score.inlier_distance / d;
   }
 
   // Pass 2: the six directions of motion and the samples each one moves.
-  double radius_squared = 0.0;
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    if (state[i]) radius_squared += (pose * points[i] - centre).squaredNorm();
-  }
+  std::vector<double> radius_partials;
+  const double radius_squared = ParallelSum(
+      points.size(), threads, radius_partials,
+      [&](std::size_t i, double& block) {
+        if (state[i]) block += (hits[i].x - centre).squaredNorm();
+      },
+      [](double& total, double block) { total += block; }, kMinSumsPerThread);
   const double lever = score.covered > 0 ? std::sqrt(radius_squared / score.covered) : 1.0;
   score.direction_centre = centre;
   score.direction_lever = lever;
-  const Vector6 pull_step = MeasurePull(pulls, centre, lever, score);
+  const Vector6 pull_step = MeasurePull(pulls, centre, lever, threads, score);
   const SharedResiduals shared =
       MeasureSharedResiduals(pulls, 2.0 * voxels.voxel, centre, lever, pull_step, threads);
   score.coherent_residual = shared.coherent;
@@ -601,27 +680,43 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
       points, normals, target_normals, state, pose, options, score.normal_angle_median_deg));
   std::vector<Vector6> source_jacobians(points.size(), Vector6::Zero());
   std::vector<Vector6> target_jacobians(points.size(), Vector6::Zero());
-  Matrix6 agreeing_information = Matrix6::Zero();
-  Matrix6 shared_information = Matrix6::Zero();  // the agreeing samples' (source x target)
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    if (!state[i] || !(normals[i].squaredNorm() > 0.0) ||
-        !(target_normals[i].squaredNorm() > 0.0)) {
-      continue;
-    }
-    const Vec3 x = pose * points[i] - centre;
-    const Vec3 n = pose.linear() * normals[i];
-    const Vec3 m = n.dot(target_normals[i]) < 0.0 ? Vec3(-target_normals[i]) : target_normals[i];
-    if (n.dot(m) < min_normal_cosine) {
-      ++score.edge_samples;
-      continue;
-    }
-    source_jacobians[i] << x.cross(n) / lever, n;
-    target_jacobians[i] << x.cross(m) / lever, m;
-    if (state[i] == 2) {
-      agreeing_information.noalias() += source_jacobians[i] * source_jacobians[i].transpose();
-      shared_information.noalias() += source_jacobians[i] * target_jacobians[i].transpose();
-    }
-  }
+  struct InformationSums {
+    Matrix6 agreeing = Matrix6::Zero();
+    Matrix6 shared = Matrix6::Zero();  // the agreeing samples' (source x target)
+    int edge_samples = 0;
+  };
+  std::vector<InformationSums> information_partials;
+  const InformationSums information = ParallelSum(
+      points.size(), threads, information_partials,
+      [&](std::size_t i, InformationSums& block) {
+        if (!state[i] || !(normals[i].squaredNorm() > 0.0) ||
+            !(target_normals[i].squaredNorm() > 0.0)) {
+          return;
+        }
+        const Vec3 x = pose * points[i] - centre;
+        const Vec3 n = pose.linear() * normals[i];
+        const Vec3 m =
+            n.dot(target_normals[i]) < 0.0 ? Vec3(-target_normals[i]) : target_normals[i];
+        if (n.dot(m) < min_normal_cosine) {
+          ++block.edge_samples;
+          return;
+        }
+        source_jacobians[i] << x.cross(n) / lever, n;
+        target_jacobians[i] << x.cross(m) / lever, m;
+        if (state[i] == 2) {
+          block.agreeing.noalias() += source_jacobians[i] * source_jacobians[i].transpose();
+          block.shared.noalias() += source_jacobians[i] * target_jacobians[i].transpose();
+        }
+      },
+      [](InformationSums& total, const InformationSums& block) {
+        total.agreeing += block.agreeing;
+        total.shared += block.shared;
+        total.edge_samples += block.edge_samples;
+      },
+      kMinSumsPerThread);
+  score.edge_samples = information.edge_samples;
+  const Matrix6& agreeing_information = information.agreeing;
+  const Matrix6& shared_information = information.shared;
   DirectionCheck direction = DirectionCheck::kFixed;
   const Eigen::SelfAdjointEigenSolver<Matrix6> solver(agreeing_information);
   if (solver.info() == Eigen::Success && score.inliers > 0) {
@@ -634,17 +729,25 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
       double information = 0.0, scatter = 0.0, strength = 0.0, error = 0.0;
       bool fixed = false;
     };
+    std::vector<AlongAxis> along_partials;
     const auto along = [&](const Vector6& axis, bool agreeing_only) {
-      AlongAxis a;
-      for (std::size_t i = 0; i < points.size(); ++i) {
-        if (state[i] == 0 || (agreeing_only && state[i] != 2)) continue;
-        const double s = source_jacobians[i].dot(axis), t = target_jacobians[i].dot(axis);
-        a.information += s * t;
-        // The noise of s * t: (s^2 - t^2) / 2 is s0 (e_s - e_t) for shared shape s0 and noise
-        // e, and has the variance of s * t for pure noise.
-        a.scatter += Squared(s * s - t * t) / 4.0;
-        a.strength += s * s;
-      }
+      AlongAxis a = ParallelSum(
+          points.size(), threads, along_partials,
+          [&](std::size_t i, AlongAxis& block) {
+            if (state[i] == 0 || (agreeing_only && state[i] != 2)) return;
+            const double s = source_jacobians[i].dot(axis), t = target_jacobians[i].dot(axis);
+            block.information += s * t;
+            // The noise of s * t: (s^2 - t^2) / 2 is s0 (e_s - e_t) for shared shape s0 and
+            // noise e, and has the variance of s * t for pure noise.
+            block.scatter += Squared(s * s - t * t) / 4.0;
+            block.strength += s * s;
+          },
+          [](AlongAxis& total, const AlongAxis& block) {
+            total.information += block.information;
+            total.scatter += block.scatter;
+            total.strength += block.strength;
+          },
+          kMinSumsPerThread);
       a.error = a.information > 0.0 ? rms / std::sqrt(a.information)
                                     : std::numeric_limits<double>::infinity();
       a.fixed = a.information > options.min_direction_z * std::sqrt(a.scatter) && a.error <= bound;
