@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cctype>
 
+#include "absl/strings/str_cat.h"
 #include "mlsreg/evaluation/metrics.h"
 #include "mlsreg/geometry/mls_radius.h"
 #include "support/synthetic.h"
@@ -59,6 +60,82 @@ TEST_P(RegistrationMethodTest, RecoversKnownTransformOfSyntheticPair) {
   // The correspondence RMSE shrinks as the registration converges.
   EXPECT_LT(result->trace.back().rmse, result->trace.front().rmse);
 }
+
+// The same scans in other units and far from the origin (a national grid's coordinates, 5,000
+// km away) register the same: every length is the data's own, and each step turns the samples
+// about their centroid with rotations measured in their own length. Linearised about the origin,
+// G-ICP at a thousandth of the units and 5,000 km away saw rotations as translations and stopped
+// 5-10 degrees off.
+class RegistrationUnitsTest : public ::testing::TestWithParam<Method> {};
+
+TEST_P(RegistrationUnitsTest, ScansInOtherUnitsOrFarFromTheOriginRegisterTheSame) {
+  const SyntheticPair pair = MakePair(0.0);
+  const double d = pair.target->sampling_distance();
+  RegistrationOptions options;
+  options.method = GetParam();
+  Matrix4 initial = RandomPerturbation(5.0, 5.0 * d, Vec3(-0.1, -0.1, 0.0), 4) * pair.truth;
+  // Its rotation as printed to 6 digits: orthonormal to 2e-6. Corrected about the origin, the
+  // start 5,000 km away would move by 10 m.
+  initial(0, 1) += 2e-6;
+  auto reference = Register(*pair.target, pair.source, initial, options);
+  ASSERT_TRUE(reference.ok()) << reference.status();
+  struct Frame {
+    double scale;
+    Vec3 offset;
+  };
+  for (const Frame& frame : {Frame{1e3, Vec3::Zero()}, Frame{1e-3, Vec3::Zero()},
+                             Frame{1.0, Vec3(512345.0, 5403210.0, 250.0)}}) {
+    // The data mapped by p -> scale p + offset; a transform (R, t) becomes (R, scale t + offset -
+    // R offset) there.
+    const auto to_frame = [&](const Matrix4& t) {
+      Matrix4 out = t;
+      out.topRightCorner<3, 1>() = frame.scale * t.topRightCorner<3, 1>() + frame.offset -
+                                   t.topLeftCorner<3, 3>() * frame.offset;
+      return out;
+    };
+    const auto from_frame = [&](const Matrix4& t) {
+      Matrix4 out = t;
+      out.topRightCorner<3, 1>() =
+          (t.topRightCorner<3, 1>() - frame.offset + t.topLeftCorner<3, 3>() * frame.offset) /
+          frame.scale;
+      return out;
+    };
+    const auto map = [&](const PointCloud& cloud) {
+      PointCloud out;
+      for (const Vec3& p : cloud.points) out.points.push_back(frame.scale * p + frame.offset);
+      return out;
+    };
+    auto target = Target::Build(map(pair.target->cloud()));
+    ASSERT_TRUE(target.ok()) << target.status();
+    auto result = Register(**target, map(pair.source), to_frame(initial), options);
+    ASSERT_TRUE(result.ok()) << result.status();
+    const Matrix4 back = from_frame(result->transform);
+    const std::string where =
+        absl::StrCat(std::string(MethodName(GetParam())), " at scale ", frame.scale, ", offset ",
+                     static_cast<double>(frame.offset.norm()));
+    const PoseError truth_error = EvaluatePose(pair.source.points, back, pair.truth, d);
+    EXPECT_LT(truth_error.rmse_d, 0.5) << where;
+    EXPECT_LT(truth_error.rotation_deg, 0.1) << where;
+    ASSERT_TRUE(result->verification.has_value()) << where;
+    EXPECT_EQ(result->verification->verdict, reference->verification->verdict) << where;
+    if (frame.offset.isZero()) {
+      // The same grids and steps up to rounding: the same pose.
+      const PoseError apart = EvaluatePose(pair.source.points, back, reference->transform, d);
+      EXPECT_LT(apart.rmse_d, 0.01) << where;
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Methods, RegistrationUnitsTest,
+                         ::testing::Values(Method::kAuto, Method::kCpSicp, Method::kMlsSicp,
+                                           Method::kGicp),
+                         [](const auto& info) {
+                           std::string name;
+                           for (char c : MethodName(info.param)) {
+                             if (std::isalnum(static_cast<unsigned char>(c))) name += c;
+                           }
+                           return name;
+                         });
 
 // The local methods that work on any target refine to well below d. FGR (global, coarse) and
 // reverse calibration (needs an organised target) have their own tests.

@@ -35,7 +35,7 @@ absl::Status CheckRigid(const Matrix4& m, std::string_view field, double toleran
   return absl::OkStatus();
 }
 
-Matrix4 Orthonormalize(const Matrix4& m) {
+Matrix4 Orthonormalize(const Matrix4& m, const Vec3& about) {
   const Eigen::JacobiSVD<Eigen::Matrix3d> svd(m.topLeftCorner<3, 3>(),
                                               Eigen::ComputeFullU | Eigen::ComputeFullV);
   Eigen::Matrix3d r = svd.matrixU() * svd.matrixV().transpose();
@@ -46,8 +46,14 @@ Matrix4 Orthonormalize(const Matrix4& m) {
   }
   Matrix4 out = Matrix4::Identity();
   out.topLeftCorner<3, 3>() = r;
-  out.topRightCorner<3, 1>() = m.topRightCorner<3, 1>();
+  out.topRightCorner<3, 1>() = m.topRightCorner<3, 1>() + (m.topLeftCorner<3, 3>() - r) * about;
   return out;
+}
+
+Vec3 Centroid(const std::vector<Vec3>& points) {
+  Vec3 sum = Vec3::Zero();
+  for (const Vec3& p : points) sum += p;
+  return points.empty() ? sum : Vec3(sum / static_cast<double>(points.size()));
 }
 
 namespace {
@@ -109,7 +115,7 @@ absl::StatusOr<Matrix4> ParseTransform(std::string_view text_or_path, std::strin
     for (int c = 0; c < 4; ++c) m(r, c) = numbers[4 * r + c];
   }
   if (absl::Status s = CheckRigid(m, name); !s.ok()) return s;
-  return Orthonormalize(m);
+  return m;
 }
 
 std::string FormatTransform(const Matrix4& m) {

@@ -8,6 +8,7 @@
 #include "mlsreg/core/parallel_for.h"
 #include "mlsreg/core/parallel_sum.h"
 #include "mlsreg/core/quantile.h"
+#include "mlsreg/core/transform.h"
 #include "mlsreg/geometry/neighbor_cache.h"
 #include "mlsreg/solvers/rigid_motion.h"
 
@@ -34,11 +35,14 @@ class VoxelPlaneStep final : public IcpStep {
         d_(d),
         threads_(threads),
         nearest_(source.points.size()),
-        previous_(source.points.size(), Vec3::Zero()) {}
+        previous_(source.points.size(), Vec3::Zero()),
+        samples_centre_(Centroid(samples_)) {}
 
   bool Match(const RigidTransform& pose, IterationReport& report) override {
     const double capture_squared = capture_ * capture_;
     const double kernel_squared = std::pow(kKernelPerCapture * capture_, 2);
+    // The step turns the samples about their centroid (TwistIncrementAbout).
+    centre_ = pose * samples_centre_;
     // Each sample's nearest voxel and its terms of the normal equations, on the threads, summed
     // in fixed blocks of samples (ParallelSum): the step is the same for any thread count.
     const GaussNewtonSums sums = ParallelSum(
@@ -62,7 +66,7 @@ class VoxelPlaneStep final : public IcpStep {
           const double k = kernel_squared / (kernel_squared + r * r);
           const double w = k * k;
           Vector6 j;
-          j.head<3>() = x.cross(n);
+          j.head<3>() = (x - centre_).cross(n);
           j.tail<3>() = n;
           block.h.noalias() += w * j * j.transpose();
           block.g.noalias() += w * r * j;
@@ -79,7 +83,7 @@ class VoxelPlaneStep final : public IcpStep {
   std::optional<RigidTransform> Solve(IterationReport&) override {
     const Vector6 delta = SolveConstrainedStep(h_, -g_);
     if (!delta.allFinite()) return std::nullopt;
-    return TwistIncrement(delta);
+    return TwistIncrementAbout(delta, centre_);
   }
 
   std::span<const Vec3> moved_samples() const override { return {}; }  // kStepSize rule only
@@ -98,6 +102,8 @@ class VoxelPlaneStep final : public IcpStep {
   std::vector<NeighborCache<8>> nearest_;
   std::vector<Vec3> previous_;                 // per sample, where the last iteration put it
   std::vector<GaussNewtonSums> partial_sums_;  // per block of samples (ParallelSum)
+  Vec3 samples_centre_;                        // the samples' centroid in the source's frame
+  Vec3 centre_ = Vec3::Zero();                 // and where the last Match's pose put it
   Matrix6 h_;
   Vector6 g_;
 };

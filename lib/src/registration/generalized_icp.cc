@@ -14,6 +14,7 @@
 #include "method_runners.h"
 #include "mlsreg/core/parallel_for.h"
 #include "mlsreg/core/parallel_sum.h"
+#include "mlsreg/core/transform.h"
 #include "mlsreg/geometry/neighbor_cache.h"
 #include "mlsreg/geometry/sampling.h"
 #include "mlsreg/solvers/rigid_motion.h"
@@ -99,11 +100,14 @@ class GicpStep final : public internal::IcpStep {
         if (plane) source_cov_[i] = plane->covariance;
       }
     });
+    samples_centre_ = Centroid(samples_);
   }
 
   bool Match(const RigidTransform& pose, IterationReport& report) override {
     const std::vector<Vec3>& target_points = target_.points();
     const std::size_t n = samples_.size();
+    // The step turns the samples about their centroid (TwistIncrementAbout).
+    centre_ = pose * samples_centre_;
     // The closest target point of every sample (through its cache: an iteration moves a sample
     // by a fraction of the spacing, so the points nearest its last position usually answer;
     // TravellingNearest while it still travels).
@@ -177,7 +181,7 @@ class GicpStep final : public internal::IcpStep {
   std::optional<RigidTransform> Solve(IterationReport&) override {
     const Vector6 delta = SolveConstrainedStep(h_, -g_);
     if (!delta.allFinite()) return std::nullopt;
-    return TwistIncrement(delta);
+    return TwistIncrementAbout(delta, centre_);
   }
 
   std::span<const Vec3> moved_samples() const override { return {}; }  // kStepSize rule only
@@ -223,9 +227,10 @@ class GicpStep final : public internal::IcpStep {
     const Eigen::Matrix3d combined = plane.covariance + r * source_cov_[i] * r.transpose();
     const Eigen::Matrix3d information = combined.inverse();
     const Vec3& x = pair.moved;
-    const Vec3 e = target_.points()[pair.target] - x;  // residual after x' = exp(delta) x
-    Eigen::Matrix<double, 3, 6> jacobian;              // de/d(omega, v) = [ [x]x, -I ]
-    jacobian.leftCols<3>() = Skew(x);
+    // The residual after x' = exp(omega) (x - c) + c + v, c the samples' centre.
+    const Vec3 e = target_.points()[pair.target] - x;
+    Eigen::Matrix<double, 3, 6> jacobian;  // de/d(omega, v) = [ [x - c]x, -I ]
+    jacobian.leftCols<3>() = Skew(x - centre_);
     jacobian.rightCols<3>() = -Eigen::Matrix3d::Identity();
     terms.hessian.noalias() = jacobian.transpose() * information * jacobian;
     terms.gradient.noalias() = jacobian.transpose() * information * e;
@@ -249,6 +254,8 @@ class GicpStep final : public internal::IcpStep {
   std::vector<TargetPlane> target_planes_;
   std::vector<std::uint32_t> new_targets_;  // target points first matched this iteration
   double max_distance_squared_;
+  Vec3 samples_centre_ = Vec3::Zero();  // the samples' centroid in the source's frame
+  Vec3 centre_ = Vec3::Zero();          // and where the last Match's pose put it
   Matrix6 h_;
   Vector6 g_;
 };

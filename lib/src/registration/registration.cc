@@ -157,8 +157,9 @@ PoseVerdict VerifyPoseSearchingRivals(const Target& target, const PointCloud& so
   static const RegistrationCallbacks kNoCallbacks;
   const double d = target.sampling_distance();
   const SourceMeasures measured = MeasureSource(target, source, threads);
-  RegistrationProblem problem{&target,    &source,       Orthonormalize(transform),
-                              &kDefaults, &kNoCallbacks, internal::Clock::now()};
+  RegistrationProblem problem{
+      &target,    &source,       Orthonormalize(transform, Centroid(source.points)),
+      &kDefaults, &kNoCallbacks, internal::Clock::now()};
   problem.threads = std::max(1, threads);
   problem.noise_levels = {target.noise().sigma_d * d, measured.noise_d * d};
   problem.source_sensor = measured.sensor;
@@ -230,7 +231,10 @@ absl::StatusOr<RegistrationResult> Register(const Target& target, const PointClo
   }
 
   const double d = target.sampling_distance();
-  RegistrationProblem problem{&target, &source, initial, &resolved, &callbacks, start};
+  // The start's rotation made exactly orthonormal about the source (Orthonormalize).
+  RegistrationProblem problem{
+      &target,   &source,    Orthonormalize(initial, Centroid(source.points)),
+      &resolved, &callbacks, start};
   problem.source_tree = source_tree ? &*source_tree : nullptr;
   problem.noise_d = std::max(target.noise().sigma_d, source_noise_d);
   problem.noise_levels = {target.noise().sigma_d * d, source_noise_d * d};

@@ -528,7 +528,7 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
   score.noise = std::hypot(noise.target, noise.source);
   const double band = std::max(options.band_per_noise * score.noise, floor);
   const double coverage = options.coverage_voxels * voxels.voxel + band;
-  const RigidTransform pose(Orthonormalize(transform));
+  const RigidTransform pose(Orthonormalize(transform, Centroid(points)));
   score.inlier_distance = band;
   score.inlier_distance_d = band / d;
   score.samples = static_cast<int>(points.size());

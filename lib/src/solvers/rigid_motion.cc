@@ -19,6 +19,13 @@ RigidTransform TwistIncrement(const Eigen::Matrix<double, 6, 1>& omega_v) {
   return step;
 }
 
+RigidTransform TwistIncrementAbout(const Eigen::Matrix<double, 6, 1>& omega_v, const Vec3& centre) {
+  RigidTransform step = RigidTransform::Identity();
+  step.linear() = ExpSo3(omega_v.head<3>());
+  step.translation() = centre - step.linear() * centre + omega_v.tail<3>();
+  return step;
+}
+
 namespace {
 // Weighted centroid of the entries with positive weight; false when the total weight is zero.
 bool WeightedCentroid(std::span<const Vec3> x, std::span<const double> w, Vec3& centroid) {
@@ -60,16 +67,27 @@ Eigen::Matrix<double, 6, 1> SolveConstrainedStep(const Eigen::Matrix<double, 6, 
   constexpr double kRelativeRank = 1e-9;  // far above round-off (1e-16), far below real data
   Vector6 step = Vector6::Zero();
   if (!h.allFinite() || !rhs.allFinite()) return step;
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eigen(h);
+  // Rotations in units of `lever` (omega = omega' / lever): h' = S h S, rhs' = S rhs and
+  // step = S step' with S = diag(1 / lever, 1).
+  const double rotation_trace = h.topLeftCorner<3, 3>().trace();
+  const double translation_trace = h.bottomRightCorner<3, 3>().trace();
+  const double lever = rotation_trace > 0.0 && translation_trace > 0.0
+                           ? std::sqrt(rotation_trace / translation_trace)
+                           : 1.0;
+  Vector6 scale = Vector6::Ones();
+  scale.head<3>().setConstant(1.0 / lever);
+  const Eigen::Matrix<double, 6, 6> balanced = scale.asDiagonal() * h * scale.asDiagonal();
+  const Vector6 balanced_rhs = scale.cwiseProduct(rhs);
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eigen(balanced);
   if (eigen.info() != Eigen::Success) return step;
   const Vector6& values = eigen.eigenvalues();  // ascending
   if (!(values[5] > 0.0)) return step;
   for (int k = 0; k < 6; ++k) {
     if (values[k] <= kRelativeRank * values[5]) continue;
     const auto direction = eigen.eigenvectors().col(k);
-    step.noalias() += (direction.dot(rhs) / values[k]) * direction;
+    step.noalias() += (direction.dot(balanced_rhs) / values[k]) * direction;
   }
-  return step;
+  return scale.cwiseProduct(step);
 }
 
 RigidTransform PointToPlaneMotion(std::span<const Vec3> x, std::span<const Vec3> y,

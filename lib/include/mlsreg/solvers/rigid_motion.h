@@ -17,11 +17,21 @@ Eigen::Matrix3d ExpSo3(const Vec3& omega);
 // exact SO(3) exponential.
 RigidTransform TwistIncrement(const Eigen::Matrix<double, 6, 1>& omega_v);
 
+// The same step taken about `centre`: x' = exp([omega]x) (x - centre) + centre + v. A step
+// linearised about the samples' centroid is conditioned the same wherever the data's origin lies;
+// about an origin far from the data (a scan in a national grid, millions of units away) every
+// rotation looks like a translation and the constrained solve below drops it.
+RigidTransform TwistIncrementAbout(const Eigen::Matrix<double, 6, 1>& omega_v, const Vec3& centre);
+
 // Solves the 6x6 normal equations h * step = rhs of a Gauss-Newton step over (omega, v), moving
-// only along directions the data constrain: eigen-directions of h whose eigenvalue is at most
-// 1e-9 of the largest get no motion (e.g. the in-plane translations and the rotation about the
-// normal when every correspondence lies on one plane, where a plain LDLT solve returns steps of
-// 1e10 units). Zero when h is zero or not finite.
+// only along directions the data constrain: eigen-directions whose eigenvalue is at most 1e-9 of
+// the largest get no motion (e.g. the in-plane translations and the rotation about the normal
+// when every correspondence lies on one plane, where a plain LDLT solve returns steps of 1e10
+// units). The test is made with the rotations measured in a length of the data's own (the
+// square root of the ratio of h's rotation and translation traces: about the samples' RMS
+// distance from the centre), so that it answers the same in any unit: in radians, a street in
+// millimetres (rotations 1e9 times as informative as translations) or a statue in kilometres
+// (1e-9 times) would lose real directions. Zero when h is zero or not finite.
 Eigen::Matrix<double, 6, 1> SolveConstrainedStep(const Eigen::Matrix<double, 6, 6>& h,
                                                  const Eigen::Matrix<double, 6, 1>& rhs);
 
