@@ -41,6 +41,15 @@ SyntheticPair MakePair(double noise_d) {
   return pair;
 }
 
+// A parameterised test's name: the method's name without its punctuation (`cpsicp`).
+std::string MethodTestName(const ::testing::TestParamInfo<Method>& info) {
+  std::string name;
+  for (char c : MethodName(info.param)) {
+    if (std::isalnum(static_cast<unsigned char>(c))) name += c;
+  }
+  return name;
+}
+
 class RegistrationMethodTest : public ::testing::TestWithParam<Method> {};
 
 TEST_P(RegistrationMethodTest, RecoversKnownTransformOfSyntheticPair) {
@@ -129,13 +138,7 @@ TEST_P(RegistrationUnitsTest, ScansInOtherUnitsOrFarFromTheOriginRegisterTheSame
 INSTANTIATE_TEST_SUITE_P(Methods, RegistrationUnitsTest,
                          ::testing::Values(Method::kAuto, Method::kCpSicp, Method::kMlsSicp,
                                            Method::kGicp),
-                         [](const auto& info) {
-                           std::string name;
-                           for (char c : MethodName(info.param)) {
-                             if (std::isalnum(static_cast<unsigned char>(c))) name += c;
-                           }
-                           return name;
-                         });
+                         MethodTestName);
 
 // The local methods that work on any target refine to well below d. FGR (global, coarse) and
 // reverse calibration (needs an organised target) have their own tests.
@@ -148,13 +151,7 @@ std::vector<Method> LocalMethods() {
 }
 
 INSTANTIATE_TEST_SUITE_P(AllMethods, RegistrationMethodTest, ::testing::ValuesIn(LocalMethods()),
-                         [](const auto& info) {
-                           std::string name;
-                           for (char c : MethodName(info.param)) {
-                             if (std::isalnum(static_cast<unsigned char>(c))) name += c;
-                           }
-                           return name;
-                         });
+                         MethodTestName);
 
 TEST(RegistrationTest, TwoPhaseRunsClosestPointThenMlsInOneTrace) {
   const SyntheticPair pair = MakePair(0.0);

@@ -565,6 +565,18 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
     int sides_judged = 0, seen_from_behind = 0;
     double sum_squared = 0.0, sum_normalised = 0.0, sum_band = 0.0;
     Vec3 covered_sum = Vec3::Zero();
+    void Add(const AgreementSums& o) {
+      hidden += o.hidden;
+      seen_through += o.seen_through;
+      covered += o.covered;
+      inliers += o.inliers;
+      sides_judged += o.sides_judged;
+      seen_from_behind += o.seen_from_behind;
+      sum_squared += o.sum_squared;
+      sum_normalised += o.sum_normalised;
+      sum_band += o.sum_band;
+      covered_sum += o.covered_sum;
+    }
   };
   std::vector<AgreementSums> agreement_partials;
   const AgreementSums agreement = ParallelSum(
@@ -598,18 +610,7 @@ VerificationScore VerifyAlignment(const Target& target, const VoxelCloud& sample
           block.seen_from_behind += (target_side > 0.0) != (source_side > 0.0);
         }
       },
-      [](AgreementSums& total, const AgreementSums& block) {
-        total.hidden += block.hidden;
-        total.seen_through += block.seen_through;
-        total.covered += block.covered;
-        total.inliers += block.inliers;
-        total.sides_judged += block.sides_judged;
-        total.seen_from_behind += block.seen_from_behind;
-        total.sum_squared += block.sum_squared;
-        total.sum_normalised += block.sum_normalised;
-        total.sum_band += block.sum_band;
-        total.covered_sum += block.covered_sum;
-      },
+      [](AgreementSums& total, const AgreementSums& block) { total.Add(block); },
       kMinSumsPerThread);
   score.hidden = agreement.hidden;
   score.seen_through = agreement.seen_through;
