@@ -53,12 +53,13 @@ def rotation(axis, deg):
     return np.eye(3) + np.sin(a) * k + (1 - np.cos(a)) * k @ k
 
 
-def prior_start(gt, seed):
+def prior_start(gt, seed, degrees=PRIOR_DEG, length=PRIOR_M):
+    """The truth moved by `degrees` about a random axis and `length` along a random direction."""
     rng = np.random.default_rng(seed)
     p = np.eye(4)
-    p[:3, :3] = rotation(rng.normal(size=3), PRIOR_DEG)
+    p[:3, :3] = rotation(rng.normal(size=3), degrees)
     t = rng.normal(size=3)
-    p[:3, 3] = t / np.linalg.norm(t) * PRIOR_M
+    p[:3, 3] = t / np.linalg.norm(t) * length
     return p @ gt
 
 

@@ -31,7 +31,7 @@ import tempfile
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "bench"))
-import lidar_peers  # noqa: E402  (rotation, pose_error)
+import lidar_peers  # noqa: E402  (matrix, prior_start, pose_error)
 
 FRAMES = [
     ("unit", 1.0, np.zeros(3)),
@@ -39,10 +39,6 @@ FRAMES = [
     ("x0.001", 0.001, np.zeros(3)),
     ("national-grid", 1.0, np.array([512345.0, 5403210.0, 250.0])),
 ]
-
-
-def matrix(text):
-    return np.array([float(v) for v in text.replace(",", " ").split()]).reshape(4, 4)
 
 
 def to_frame(t, scale, offset):
@@ -56,16 +52,6 @@ def from_frame(t, scale, offset):
     out = t.copy()
     out[:3, 3] = (t[:3, 3] - offset + t[:3, :3] @ offset) / scale
     return out
-
-
-def prior_start(gt, seed, degrees, length):
-    """The truth moved by `degrees` about a random axis and `length` along a random direction."""
-    rng = np.random.default_rng(seed)
-    p = np.eye(4)
-    p[:3, :3] = lidar_peers.rotation(rng.normal(size=3), degrees)
-    t = rng.normal(size=3)
-    p[:3, 3] = t / np.linalg.norm(t) * length
-    return p @ gt
 
 
 def read_points(path):
@@ -103,9 +89,9 @@ def main():
         for manifest in args.pairs:
             folder = os.path.dirname(manifest)
             for k, pair in enumerate(list(csv.DictReader(open(manifest)))[:args.count]):
-                gt = matrix(pair["gt"])
-                start = matrix(pair["init"]) if pair.get("init") else prior_start(
-                    gt, 1000 + k, args.prior_deg, args.prior_length)
+                gt = lidar_peers.matrix(pair["gt"])
+                start = (lidar_peers.matrix(pair["init"]) if pair.get("init") else
+                         lidar_peers.prior_start(gt, 1000 + k, args.prior_deg, args.prior_length))
                 source = read_points(os.path.join(folder, pair["source"]))
                 target = read_points(os.path.join(folder, pair["target"]))
                 reference = {}

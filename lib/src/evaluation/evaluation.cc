@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "absl/strings/str_cat.h"
+#include "mlsreg/core/transform.h"
 #include "mlsreg/io/io.h"
 
 namespace mlsreg {
@@ -67,9 +68,7 @@ class CloudCache {
 };
 
 Vec3 TransformedCentroid(const PointCloud& cloud, const Matrix4& m) {
-  Vec3 sum = Vec3::Zero();
-  for (const Vec3& p : cloud.points) sum += p;
-  const Vec3 c = sum / static_cast<double>(cloud.size());
+  const Vec3 c = Centroid(cloud.points);
   return m.topLeftCorner<3, 3>() * c + m.topRightCorner<3, 1>();
 }
 

@@ -7,6 +7,7 @@
 #include <random>
 
 #include "method_runners.h"
+#include "mlsreg/core/transform.h"
 #include "mlsreg/geometry/feature_cloud.h"
 #include "mlsreg/registration/global_candidates.h"
 #include "mlsreg/solvers/rigid_motion.h"
@@ -121,11 +122,7 @@ absl::StatusOr<RegistrationResult> internal::RunFastGlobalRegistration(
 
   // Optimisation in normalised coordinates (each cloud centred, both scaled by one factor).
   phase = Clock::now();
-  Vec3 cs = Vec3::Zero(), ct = Vec3::Zero();
-  for (const Vec3& x : s->points) cs += x;
-  for (const Vec3& x : t->points) ct += x;
-  if (!s->points.empty()) cs /= static_cast<double>(s->points.size());
-  if (!t->points.empty()) ct /= static_cast<double>(t->points.size());
+  const Vec3 cs = Centroid(s->points), ct = Centroid(t->points);
   double extent = 0.0;
   for (const Vec3& x : s->points) extent = std::max(extent, (x - cs).norm());
   for (const Vec3& x : t->points) extent = std::max(extent, (x - ct).norm());

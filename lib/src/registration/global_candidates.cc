@@ -6,6 +6,7 @@
 #include <numbers>
 #include <random>
 
+#include "mlsreg/core/transform.h"
 #include "mlsreg/solvers/rigid_motion.h"
 
 namespace mlsreg {
@@ -25,9 +26,11 @@ class Ransac {
  public:
   Ransac(const FeatureCloud& source, const FeatureCloud& target, std::vector<Match> matches,
          const GlobalCandidateOptions& options)
-      : source_(source), target_(target), matches_(std::move(matches)), options_(options) {
-    for (const Vec3& p : source.points) centre_ += p;
-    if (!source.points.empty()) centre_ /= static_cast<double>(source.points.size());
+      : source_(source),
+        target_(target),
+        matches_(std::move(matches)),
+        options_(options),
+        centre_(Centroid(source.points)) {
     distinct_translation_ = options.distinct_translation > 0.0 ? options.distinct_translation
                                                                : 2.0 * options.inlier_distance;
   }
