@@ -8,6 +8,8 @@ them. `mlsreg register` runs in each frame with each method (defaults otherwise,
 and the results are mapped back to the manifest's frame: the same data should give the same
 pose and the same verdict in any frame.
 
+Reads the scans with Open3D (`apt-get install python3-open3d`, as bench/lidar_peers.py does).
+
 Starts: the manifest's `init` column where it has one, else the truth moved by --prior-deg
 degrees and --prior-length (5 degrees and 1 m by default: bench/lidar_peers.py's odometry
 prior, for LiDAR manifests without starts; give 0.005 for the bundled bunny, in metres).
