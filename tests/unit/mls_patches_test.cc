@@ -294,7 +294,7 @@ TEST(MlsPatchesTest, DenoisesAlmostAsStronglyAsTheExactProjection) {
   EXPECT_LE(patches_rms, 1.12 * exact_rms);
 }
 
-TEST(MlsPatchesTest, FarQueryIsSeededFromNearestSampleOrRejected) {
+TEST(MlsPatchesTest, FarQueryIsSeededFromNearestAnchorOrRejected) {
   const PointCloud plane = SamplePlaneGrid(1.0, 0.05, 0.0, 1);
   const KdTree tree(plane.points);
   const MlsPatches patches = BuildPatches(plane, tree, 0.2);
@@ -303,7 +303,10 @@ TEST(MlsPatchesTest, FarQueryIsSeededFromNearestSampleOrRejected) {
   ASSERT_EQ(seeded.status, ProjectionStatus::kOk);
   EXPECT_TRUE(seeded.seeded_from_nearest_sample);
   EXPECT_NEAR(seeded.point.z(), 0.0, 1e-9);
-  EXPECT_NEAR(seeded.point.x(), 0.1, 0.05);
+  // The nearest anchor (one per cell of h = r / 2 = 0.1) lies within a cell's diagonal of the
+  // query's foot (0.1, 0.1, 0).
+  EXPECT_NEAR(seeded.point.x(), 0.1, 0.1 * std::sqrt(2.0));
+  EXPECT_NEAR(seeded.point.y(), 0.1, 0.1 * std::sqrt(2.0));
   const MlsProjection rejected = patches.Project(far_query, false);
   EXPECT_EQ(rejected.status, ProjectionStatus::kTooFewNeighbors);
 }
@@ -311,7 +314,8 @@ TEST(MlsPatchesTest, FarQueryIsSeededFromNearestSampleOrRejected) {
 TEST(MlsPatchesTest, ASeedMemoGivesTheSameFarProjectionsAndReusesThem) {
   // Far queries (beyond r of every anchor) wandering above a plane, as a source point outside
   // the overlap moves during ICP: with a memo per query the seeded projections are bit for bit
-  // those without, and the memo names the nearest sample they were seeded from.
+  // those without, and the memo names the anchor they were seeded from, a sample of the target
+  // within r of the query's nearest sample.
   const PointCloud plane = SamplePlaneGrid(1.0, 0.05, 0.0, 1);
   const KdTree tree(plane.points);
   const MlsPatches patches = BuildPatches(plane, tree, 0.2);
@@ -324,7 +328,7 @@ TEST(MlsPatchesTest, ASeedMemoGivesTheSameFarProjectionsAndReusesThem) {
     MlsPatches::SeedMemo memo;
     for (int i = 0; i < 25; ++i, ++calls) {
       q += Vec3(step(rng), step(rng), step(rng));
-      const std::uint32_t before = memo.sample;
+      const std::uint32_t before = memo.anchor;
       const MlsProjection cold = patches.Project(q, true);
       const MlsProjection memoised = patches.Project(q, true, &cache, &memo);
       ASSERT_EQ(cold.status, ProjectionStatus::kOk);
@@ -334,11 +338,14 @@ TEST(MlsPatchesTest, ASeedMemoGivesTheSameFarProjectionsAndReusesThem) {
       EXPECT_EQ(memoised.point, cold.point) << "walk " << walk << " step " << i;
       EXPECT_EQ(memoised.normal, cold.normal);
       EXPECT_EQ(memoised.curvature, cold.curvature);
-      EXPECT_EQ(memo.sample, tree.Nearest(q).index);
-      same_sample += memo.sample == before;
+      // The seed's point is the anchor's: a sample of the plane, near the query's foot.
+      const Vec3 nearest = plane.points[tree.Nearest(q).index];
+      EXPECT_NEAR(cold.point.z(), 0.0, 1e-9);
+      EXPECT_LE((cold.point - nearest).norm(), 0.2);
+      same_sample += memo.anchor == before;
     }
   }
-  // Steps of at most 1 cm on a 5 cm grid: most keep their nearest sample, and reuse.
+  // Steps of at most 1 cm between anchors 10 cm apart: most keep their anchor, and reuse.
   EXPECT_GT(same_sample, calls / 2) << same_sample << " of " << calls;
 }
 

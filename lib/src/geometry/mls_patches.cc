@@ -64,7 +64,7 @@ bool OnOneScanLine(const std::vector<Vec3>& points, const MlsProjector::Workspac
 MlsPatches::MlsPatches(const std::vector<Vec3>& points, const KdTree& tree, const MlsOptions& mls,
                        const std::optional<Vec3>& viewpoint,
                        const std::optional<SensorFinding>& scan_sensor)
-    : points_(&points), tree_(&tree), mls_(mls), scan_sensor_(scan_sensor) {
+    : points_(&points), mls_(mls), scan_sensor_(scan_sensor) {
   MlsOptions exact = mls;
   exact.seed_far_queries_from_nearest_sample = false;
   // An anchor's patch is the fit around wherever Algorithm 1 stops. Stopping once an iteration
@@ -212,6 +212,7 @@ MlsPatches::Blend MlsPatches::BlendAt(const Vec3& query, const Vec3& near, Ancho
   Blend blend;
   if (found == 0) return blend;
   blend.nearest_distance = std::sqrt(distance_squared[0]);
+  blend.nearest_anchor = index[0];
   // Beyond the surface's reach (a source sample outside the overlap): the caller refuses the
   // query, so fitting the far anchors' patches on first use would be work no answer reads.
   if (blend.nearest_distance > beyond) return blend;
@@ -260,8 +261,8 @@ MlsPatches::Blend MlsPatches::BlendAt(const Vec3& query, const Vec3& near, Ancho
   return blend;
 }
 
-std::optional<MlsProjection> MlsPatches::SeededAt(std::uint32_t sample) const {
-  const Vec3& at = (*points_)[sample];
+std::optional<MlsProjection> MlsPatches::SeededAt(std::uint32_t anchor) const {
+  const Vec3& at = anchors_[anchor];
   Blend seeded = BlendAt(at, at);
   if (seeded.ok) {
     const Blend refined = BlendAt(at, seeded.projection.point);
@@ -287,13 +288,14 @@ MlsProjection MlsPatches::Finish(const Vec3& query, const Vec3& near, bool seed_
   if (!blend.ok || blend.nearest_distance > mls_.radius) {
     MlsProjection far;
     far.status = ProjectionStatus::kTooFewNeighbors;
-    if (!seed_far_queries || tree_->size() == 0) return far;
-    // As Algorithm 1 does for such queries: project the nearest target sample instead.
-    const std::uint32_t sample = tree_->Nearest(query).index;
-    if (seed_memo == nullptr) return SeededAt(sample).value_or(far);
-    if (seed_memo->sample != sample) {
-      seed_memo->sample = sample;
-      seed_memo->projection = SeededAt(sample).value_or(far);
+    if (!seed_far_queries || blend.nearest_anchor == kNoAnchor) return far;
+    // As Algorithm 1 does for such queries: project a target sample near the query instead,
+    // here the nearest anchor (a sample the blend has just found).
+    const std::uint32_t anchor = blend.nearest_anchor;
+    if (seed_memo == nullptr) return SeededAt(anchor).value_or(far);
+    if (seed_memo->anchor != anchor) {
+      seed_memo->anchor = anchor;
+      seed_memo->projection = SeededAt(anchor).value_or(far);
     }
     return seed_memo->projection;
   }

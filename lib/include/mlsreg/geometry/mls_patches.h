@@ -95,12 +95,12 @@ class MlsPatches {
   // The anchors nearest a query's last blend point, kept for its next projection (see above).
   // Starts empty; owned by the caller, one per query, used by one thread at a time.
   using AnchorCache = NeighborCache<12>;
-  // A far query's last seeded projection (Project with seed_far_queries): the target sample it
-  // was seeded from and the projection that gave. The projection depends on that sample alone,
-  // so while the query's nearest sample stays the same it is reused, not blended again. Owned
-  // by the caller, one per query, beside its AnchorCache.
+  // A far query's last seeded projection (Project with seed_far_queries): the anchor it was
+  // seeded from and the projection that gave. The projection depends on that anchor alone, so
+  // while the query's nearest anchor stays the same it is reused, not blended again. Owned by
+  // the caller, one per query, beside its AnchorCache.
   struct SeedMemo {
-    std::uint32_t sample = std::numeric_limits<std::uint32_t>::max();
+    std::uint32_t anchor = std::numeric_limits<std::uint32_t>::max();
     MlsProjection projection;
   };
 
@@ -119,12 +119,13 @@ class MlsPatches {
                                           const std::optional<SensorFinding>& scan_sensor = {});
 
   // The MLS projection of `query`. With `seed_far_queries`, a query farther than r from every
-  // anchor is replaced by its nearest target sample (seeded_from_nearest_sample); otherwise it
-  // fails with kTooFewNeighbors. Thread-safe; allocation-free once the patches it blends are
-  // fitted. With `cache` (the query's AnchorCache), the anchors come from it where they can: the
-  // result is the same, bit for bit, with or without it (both blends use it). With
-  // `seed_memo`, a seeded projection is reused from it when its sample is the same (bit for bit
-  // the same result).
+  // anchor is replaced by its nearest anchor, a target sample (seeded_from_nearest_sample: the
+  // blend has just found it, where the nearest sample would take a search of the whole target,
+  // and an anchor lies within h of every sample); otherwise it fails with kTooFewNeighbors.
+  // Thread-safe; allocation-free once the patches it blends are fitted. With `cache` (the
+  // query's AnchorCache), the anchors come from it where they can: the result is the same, bit
+  // for bit, with or without it (both blends use it). With `seed_memo`, a seeded projection is
+  // reused from it when its anchor is the same (bit for bit the same result).
   MlsProjection Project(const Vec3& query, bool seed_far_queries, AnchorCache* cache = nullptr,
                         SeedMemo* seed_memo = nullptr) const;
   // The same, with the patches chosen around `near`, a point already close to the surface (a
@@ -170,8 +171,10 @@ class MlsPatches {
   struct Blend {
     bool ok = false;
     double nearest_distance = 0.0;
+    std::uint32_t nearest_anchor = kNoAnchor;  // kNoAnchor when there are no anchors
     MlsProjection projection;
   };
+  static constexpr std::uint32_t kNoAnchor = std::numeric_limits<std::uint32_t>::max();
 
   MlsPatches(const std::vector<Vec3>& points, const KdTree& tree, const MlsOptions& mls,
              const std::optional<Vec3>& viewpoint, const std::optional<SensorFinding>& scan_sensor);
@@ -189,11 +192,10 @@ class MlsPatches {
                 int blended = kBlendedPatches) const;
   MlsProjection Finish(const Vec3& query, const Vec3& near, bool seed_far_queries, int blends,
                        AnchorCache* cache, SeedMemo* seed_memo) const;
-  // The projection that stands in for a far query: its nearest target sample `sample`'s.
-  std::optional<MlsProjection> SeededAt(std::uint32_t sample) const;
+  // The projection that stands in for a far query: its nearest anchor `anchor`'s.
+  std::optional<MlsProjection> SeededAt(std::uint32_t anchor) const;
 
   const std::vector<Vec3>* points_;
-  const KdTree* tree_;
   MlsOptions mls_;
   std::optional<SensorFinding> scan_sensor_;
   // The exact Algorithm 1 that fits the patches, at r and at each grown support.
