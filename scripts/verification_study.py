@@ -118,7 +118,8 @@ def score_row(pair, kind, v, j):
                                          "settle_displacement", "coherent_residual",
                                          "inlier_distance", "noise", "covered",
                                          "worst_direction_samples",
-                                         "worst_direction_strength", "worst_direction_error")}}
+                                         "worst_direction_strength", "worst_direction_error",
+                                         "samples", "hidden", "seen_through")}}
 
 
 def verify(exe, pair, kind, pose):
