@@ -121,7 +121,8 @@ class MlsPatches {
   // The MLS projection of `query`. With `seed_far_queries`, a query farther than r from every
   // anchor is replaced by its nearest anchor, a target sample (seeded_from_nearest_sample: the
   // blend has just found it, where the nearest sample would take a search of the whole target,
-  // and an anchor lies within h of every sample); otherwise it fails with kTooFewNeighbors.
+  // and an anchor lies in every cell of h that holds a sample); otherwise it fails with
+  // kTooFewNeighbors.
   // Thread-safe; allocation-free once the patches it blends are fitted. With `cache` (the
   // query's AnchorCache), the anchors come from it where they can: the result is the same, bit
   // for bit, with or without it (both blends use it). With `seed_memo`, a seeded projection is
