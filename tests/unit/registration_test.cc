@@ -41,6 +41,13 @@ SyntheticPair MakePair(double noise_d) {
   return pair;
 }
 
+// The pair's truth moved by 5 degrees and 5 d (about a point near the overlap's middle): the
+// start most tests register from.
+Matrix4 StartFiveDegreesOff(const SyntheticPair& pair) {
+  const double d = pair.target->sampling_distance();
+  return RandomPerturbation(5.0, 5.0 * d, Vec3(-0.1, -0.1, 0.0), 4) * pair.truth;
+}
+
 // A parameterised test's name: the method's name without its punctuation (`cpsicp`).
 std::string MethodTestName(const ::testing::TestParamInfo<Method>& info) {
   std::string name;
@@ -57,8 +64,7 @@ TEST_P(RegistrationMethodTest, RecoversKnownTransformOfSyntheticPair) {
   const double d = pair.target->sampling_distance();
   RegistrationOptions options;
   options.method = GetParam();
-  // Start 5 degrees and 5 d away from the truth.
-  const Matrix4 initial = RandomPerturbation(5.0, 5.0 * d, Vec3(-0.1, -0.1, 0.0), 4) * pair.truth;
+  const Matrix4 initial = StartFiveDegreesOff(pair);
   auto result = Register(*pair.target, pair.source, initial, options);
   ASSERT_TRUE(result.ok()) << result.status();
   const PoseError e = EvaluatePose(pair.source.points, result->transform, pair.truth, d);
@@ -82,7 +88,7 @@ TEST_P(RegistrationUnitsTest, ScansInOtherUnitsOrFarFromTheOriginRegisterTheSame
   const double d = pair.target->sampling_distance();
   RegistrationOptions options;
   options.method = GetParam();
-  Matrix4 initial = RandomPerturbation(5.0, 5.0 * d, Vec3(-0.1, -0.1, 0.0), 4) * pair.truth;
+  Matrix4 initial = StartFiveDegreesOff(pair);
   // Its rotation as printed to 6 digits: orthonormal to 2e-6. Corrected about the origin, the
   // start 5,000 km away would move by 10 m.
   initial(0, 1) += 2e-6;
@@ -463,7 +469,7 @@ TEST(AutoRadiusTest, ARegistrationAtTwoDOfNoisePicksEightD) {
 TEST(MlsProjectionTest, EveryProjectionRecoversTheTransform) {
   const SyntheticPair pair = MakePair(0.0);
   const double d = pair.target->sampling_distance();
-  const Matrix4 initial = RandomPerturbation(5.0, 5.0 * d, Vec3(-0.1, -0.1, 0.0), 4) * pair.truth;
+  const Matrix4 initial = StartFiveDegreesOff(pair);
   ASSERT_NE(pair.target->mls_patches(), nullptr);
   Matrix4 transforms[3];
   for (MlsProjectionKind kind : {MlsProjectionKind::kPatchesThenExact, MlsProjectionKind::kPatches,

@@ -12,18 +12,15 @@ Eigen::Matrix3d ExpSo3(const Vec3& omega) {
   return Eigen::AngleAxisd(angle, omega / angle).toRotationMatrix();
 }
 
-RigidTransform TwistIncrement(const Eigen::Matrix<double, 6, 1>& omega_v) {
-  RigidTransform step = RigidTransform::Identity();
-  step.linear() = ExpSo3(omega_v.head<3>());
-  step.translation() = omega_v.tail<3>();
-  return step;
-}
-
 RigidTransform TwistIncrementAbout(const Eigen::Matrix<double, 6, 1>& omega_v, const Vec3& centre) {
   RigidTransform step = RigidTransform::Identity();
   step.linear() = ExpSo3(omega_v.head<3>());
   step.translation() = centre - step.linear() * centre + omega_v.tail<3>();
   return step;
+}
+
+RigidTransform TwistIncrement(const Eigen::Matrix<double, 6, 1>& omega_v) {
+  return TwistIncrementAbout(omega_v, Vec3::Zero());
 }
 
 namespace {
