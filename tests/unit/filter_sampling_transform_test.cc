@@ -175,58 +175,6 @@ TEST(SurfaceCacheTest, AnswersAsTheAnalysisAndAnalysesEachPointOnce) {
   EXPECT_EQ(cache.analysed(), 500u);
 }
 
-TEST(KdTreeTest, MatchesBruteForce) {
-  const PointCloud cloud = testing::SampleBumpySurface(3000, -1, 1, 3);
-  const KdTree tree(cloud.points);
-  const Vec3 q(0.1, -0.2, 0.05);
-  std::size_t best = 0;
-  for (std::size_t i = 1; i < cloud.size(); ++i) {
-    if ((cloud.points[i] - q).norm() < (cloud.points[best] - q).norm()) best = i;
-  }
-  EXPECT_EQ(tree.Nearest(q).index, best);
-  RadiusNeighbors found;
-  tree.Radius(q, 0.2, found);
-  std::size_t brute = 0;
-  for (const Vec3& p : cloud.points) brute += (p - q).norm() < 0.2;
-  EXPECT_EQ(found.size(), brute);
-}
-
-// A tree built on several threads is nanoflann's serial tree node for node: every radius query
-// returns the same neighbours in the same (search) order, every k-nearest query the same list,
-// also on a cloud of many duplicates and one dense as a LiDAR scan's near rings. Its memory is
-// the serial tree's within a pool block per subtree.
-TEST(KdTreeTest, ABuildOnManyThreadsIsTheSerialTree) {
-  PointCloud cloud = testing::SampleBumpySurface(30'000, -1, 1, 3);
-  for (int i = 0; i < 5'000; ++i) cloud.points.push_back(Vec3(0.25, 0.25, 0.1));
-  for (int i = 0; i < 20'000; ++i) {
-    const double r = 0.02 * (1 + i % 50), a = 0.001 * i;
-    cloud.points.push_back(Vec3(r * std::cos(a), r * std::sin(a), -0.5));
-  }
-  const KdTree serial(cloud.points, 1);
-  std::mt19937_64 rng(11);
-  std::uniform_real_distribution<double> u(-1.1, 1.1);
-  std::vector<Vec3> queries(400);
-  for (Vec3& q : queries) q = Vec3(u(rng), u(rng), 0.6 * u(rng));
-  for (int i = 0; i < 100; ++i) queries.push_back(cloud.points[i * 547]);
-  for (const int threads : {2, 3, 8}) {
-    const KdTree parallel(cloud.points, threads);
-    ASSERT_EQ(parallel.size(), serial.size());
-    EXPECT_NEAR(static_cast<double>(parallel.MemoryBytes()),
-                static_cast<double>(serial.MemoryBytes()), 16 * 8192);
-    for (const Vec3& q : queries) {
-      RadiusNeighbors a, b;
-      serial.Radius(q, 0.15, a);
-      parallel.Radius(q, 0.15, b);
-      ASSERT_EQ(a, b) << "threads " << threads << " query " << q.transpose();
-      std::uint32_t ia[12], ib[12];
-      double da[12], db[12];
-      ASSERT_EQ(serial.Knn(q, 12, ia, da), parallel.Knn(q, 12, ib, db));
-      EXPECT_TRUE(std::equal(ia, ia + 12, ib)) << "threads " << threads;
-      EXPECT_TRUE(std::equal(da, da + 12, db)) << "threads " << threads;
-    }
-  }
-}
-
 // Queries on random walks (steps of a tenth of the spacing, a jump across the cloud now and
 // then): the cache's answers are the brute-force k nearest, and most come from the cache.
 TEST(NeighborCacheTest, AnswersAreTheNearestAndMostComeFromTheCache) {
