@@ -188,6 +188,46 @@ TEST(MlsProjectorTest, CollinearSamplesAreDegenerateNotNan) {
   EXPECT_TRUE(p.normal.allFinite());
 }
 
+// Rings of a scan on flat ground, 2 cm apart along each ring and 0.3 m between rings: a support
+// of r = 0.1 holds one ring (a line: ProjectUnlessLine gives up after the first PCA, and Project
+// ends in a fit whose middle spread is as small), one of r = 0.5 several (a plane: the same
+// projection as Project, bit for bit). On a sphere every projection is Project's.
+TEST(MlsProjectorTest, ProjectUnlessLineGivesUpOnOneRingAndIsProjectElsewhere) {
+  PointCloud rings;
+  for (int ring = 0; ring < 8; ++ring) {
+    for (int i = 0; i < 100; ++i) {
+      rings.points.emplace_back(0.02 * i, 0.3 * ring, 0.001 * std::sin(0.7 * i + ring));
+    }
+  }
+  const KdTree tree(rings.points);
+  const Vec3 query(1.0, 0.9, 0.05);  // above the fourth ring
+  MlsProjector::Workspace ws;
+  const MlsProjector narrow(rings.points, tree, OptionsWithRadius(0.1));
+  EXPECT_EQ(narrow.ProjectUnlessLine(query, ws, 0.05).status, ProjectionStatus::kLineSupport);
+  const MlsProjection full = narrow.Project(query, ws);
+  if (full.status == ProjectionStatus::kOk) {
+    const Vec3& spread = ws.last_fit.frame.eigenvalues;
+    EXPECT_LT(spread[1], 0.05 * spread[2]);
+  }
+  const auto expect_same = [&](const MlsProjector& projector, const Vec3& q) {
+    const MlsProjection want = projector.Project(q, ws);
+    const MlsProjection got = projector.ProjectUnlessLine(q, ws, 0.05);
+    ASSERT_EQ(got.status, want.status);
+    EXPECT_EQ(got.point, want.point);
+    EXPECT_EQ(got.normal, want.normal);
+    EXPECT_EQ(got.iterations, want.iterations);
+  };
+  const MlsProjector wide(rings.points, tree, OptionsWithRadius(0.5));
+  ASSERT_EQ(wide.Project(query, ws).status, ProjectionStatus::kOk);
+  expect_same(wide, query);
+  const PointCloud sphere = SampleSphere(5000, 1.0, -2.0, 5);
+  const KdTree sphere_tree(sphere.points);
+  const MlsProjector on_sphere(
+      sphere.points, sphere_tree,
+      OptionsWithRadius(5.0 * SamplingDistance(sphere.points, sphere_tree)));
+  for (int i = 0; i < 50; ++i) expect_same(on_sphere, 1.01 * sphere.points[i * 97]);
+}
+
 TEST(MlsProjectorTest, WarmStartOnTangentPlaneAgreesWithColdStart) {
   const PointCloud sphere = SampleSphere(20000, 1.0, -2.0, 23);
   const KdTree tree(sphere.points);

@@ -153,7 +153,13 @@ MlsPatches::State MlsPatches::Fit(std::size_t i, MlsProjector::Workspace& worksp
                                   Patch& out) const {
   double growth = 1.0;
   for (const std::unique_ptr<MlsProjector>& projector : projectors_) {
-    const MlsProjection projection = projector->Project(anchors_[i], workspace);
+    const MlsProjection projection =
+        scan_sensor_ ? projector->ProjectUnlessLine(anchors_[i], workspace, kFirstFitLineSpread)
+                     : projector->Project(anchors_[i], workspace);
+    if (projection.status == ProjectionStatus::kLineSupport) {
+      growth *= kSupportGrowth;
+      continue;
+    }
     if (projection.status != ProjectionStatus::kOk) return kFailed;
     const Vec3& spread = workspace.last_fit.frame.eigenvalues;  // ascending
     if (!scan_sensor_ || spread[1] >= kMinSupportSpread * spread[2]) {

@@ -17,6 +17,8 @@ std::string_view ProjectionStatusName(ProjectionStatus status) {
       return "degenerate";
     case ProjectionStatus::kNotConverged:
       return "not_converged";
+    case ProjectionStatus::kLineSupport:
+      return "line_support";
   }
   return "unknown";
 }
@@ -32,7 +34,7 @@ MlsProjection MlsProjector::Project(const Vec3& query, Workspace& workspace) con
 }
 
 ProjectionStatus MlsProjector::Fit(const Vec3& s, const RadiusNeighbors& candidates, Workspace& ws,
-                                   int& neighbors) const {
+                                   int& neighbors, double min_spread) const {
   const double r = options_.radius;
   // Lines 4-7: Wendland weights around s, weighted mean and weighted PCA.
   const std::size_t n = candidates.size();
@@ -54,6 +56,9 @@ ProjectionStatus MlsProjector::Fit(const Vec3& s, const RadiusNeighbors& candida
   MlsLocalFit& fit = ws.last_fit;
   LocalFrame& frame = fit.frame;
   if (!covariance.Finalize(frame)) return ProjectionStatus::kDegenerate;
+  if (frame.eigenvalues[1] < min_spread * frame.eigenvalues[2]) {
+    return ProjectionStatus::kLineSupport;
+  }
   if (viewpoint_ && frame.normal.dot(*viewpoint_ - frame.mean) < 0.0) {
     frame.normal = -frame.normal;
     frame.tangent_v = -frame.tangent_v;  // keep (u, v, n) right-handed
@@ -75,8 +80,18 @@ ProjectionStatus MlsProjector::Fit(const Vec3& s, const RadiusNeighbors& candida
   return ProjectionStatus::kOk;
 }
 
-MlsProjection MlsProjector::ProjectFrom(const Vec3& start, Workspace& ws,
+MlsProjection MlsProjector::ProjectUnlessLine(const Vec3& query, Workspace& workspace,
+                                              double min_spread) const {
+  return Iterate(query, workspace, nullptr, min_spread);
+}
+
+MlsProjection MlsProjector::ProjectFrom(const Vec3& start, Workspace& workspace,
                                         KeptNeighborhood* kept) const {
+  return Iterate(start, workspace, kept, 0.0);
+}
+
+MlsProjection MlsProjector::Iterate(const Vec3& start, Workspace& ws, KeptNeighborhood* kept,
+                                    double first_min_spread) const {
   const double r = options_.radius;
   const double margin =
       kept ? std::max(options_.search_margin, kKeptMargin) : options_.search_margin;
@@ -101,7 +116,8 @@ MlsProjection MlsProjector::ProjectFrom(const Vec3& start, Workspace& ws,
   for (int iteration = 1; iteration <= options_.max_iterations; ++iteration) {
     result.iterations = iteration;
     if (!covers(s)) gather(s);
-    const ProjectionStatus status = Fit(s, gathered.samples, ws, result.neighbors);
+    const ProjectionStatus status =
+        Fit(s, gathered.samples, ws, result.neighbors, iteration == 1 ? first_min_spread : 0.0);
     if (status == ProjectionStatus::kTooFewNeighbors && iteration == 1 && !reseeded &&
         options_.seed_far_queries_from_nearest_sample && tree_.size() > 0) {
       // The query is too far from the target to start Algorithm 1: start from the closest

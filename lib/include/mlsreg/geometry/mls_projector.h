@@ -39,6 +39,7 @@ enum class ProjectionStatus : std::uint8_t {
   kTooFewNeighbors,  // fewer than 3 weighted samples within r of the iterate
   kDegenerate,       // the neighbourhood is a line or a point; no reference plane exists
   kNotConverged,     // still moving after max_iterations
+  kLineSupport,      // ProjectUnlessLine: the first fit's support lies along a line
 };
 std::string_view ProjectionStatusName(ProjectionStatus status);
 
@@ -110,6 +111,13 @@ class MlsProjector {
   MlsProjection ProjectFrom(const Vec3& start, Workspace& workspace,
                             KeptNeighborhood* kept = nullptr) const;
 
+  // Algorithm 1 started at the query, giving up after the first iteration's weighted PCA when
+  // its support lies along a line: the middle principal spread (eigenvalue) below `min_spread`
+  // of the largest (kLineSupport; no height field is fitted). Otherwise exactly Project. A scan's
+  // far rings make such supports (MlsPatches grows them), and the iterations that would walk
+  // onto a line's surface only to find it a line are spared.
+  MlsProjection ProjectUnlessLine(const Vec3& query, Workspace& workspace, double min_spread) const;
+
   const MlsOptions& options() const { return options_; }
   void set_seed_far_queries_from_nearest_sample(bool seed) {
     options_.seed_far_queries_from_nearest_sample = seed;
@@ -118,8 +126,12 @@ class MlsProjector {
  private:
   // Lines 4-9 at the iterate `s` over the gathered `candidates`, into `workspace.last_fit`; kOk,
   // kTooFewNeighbors (< 3 weighted samples) or kDegenerate.
+  // With `min_spread` > 0, kLineSupport when the PCA's middle spread is below it (relative to
+  // the largest), before the height field.
   ProjectionStatus Fit(const Vec3& s, const RadiusNeighbors& candidates, Workspace& workspace,
-                       int& neighbors) const;
+                       int& neighbors, double min_spread = 0.0) const;
+  MlsProjection Iterate(const Vec3& start, Workspace& workspace, KeptNeighborhood* kept,
+                        double first_min_spread) const;
 
   const std::vector<Vec3>& points_;
   const KdTree& tree_;
