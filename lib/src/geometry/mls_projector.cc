@@ -56,7 +56,7 @@ ProjectionStatus MlsProjector::Fit(const Vec3& s, const RadiusNeighbors& candida
   MlsLocalFit& fit = ws.last_fit;
   LocalFrame& frame = fit.frame;
   if (!covariance.Finalize(frame)) return ProjectionStatus::kDegenerate;
-  if (frame.eigenvalues[1] < min_spread * frame.eigenvalues[2]) {
+  if (min_spread > 0.0 && frame.eigenvalues[1] < min_spread * frame.eigenvalues[2]) {
     return ProjectionStatus::kLineSupport;
   }
   if (viewpoint_ && frame.normal.dot(*viewpoint_ - frame.mean) < 0.0) {
