@@ -276,29 +276,31 @@ class TreeBuild {
 
   // nanoflann's planeSplit, step for step: entries below `cut` first, then those equal to it.
   std::pair<Offset, Offset> PlaneSplit(Offset first, Offset count, int dimension, double cut) {
+    const Offset lim1 =
+        SwapLoop(first, 0, count, dimension, [cut](double value) { return value < cut; });
+    const Offset lim2 =
+        SwapLoop(first, lim1, count, dimension, [cut](double value) { return value <= cut; });
+    return {lim1, lim2};
+  }
+
+  // One of planeSplit's loops over entries [first + left, first + count): scans from the left
+  // for an entry that does not go left and from the right for one that does, and swaps them
+  // until the scans cross. Returns where the left scan stopped (relative to `first`).
+  template <typename GoesLeft>
+  Offset SwapLoop(Offset first, Offset left, Offset count, int dimension,
+                  const GoesLeft& goes_left) {
     Entry* e = entries_.data() + first;
     const auto at = [&](Offset i) { return e[i].coordinate[dimension]; };
-    Offset left = 0;
     Offset right = count - 1;
     for (;;) {
-      while (left <= right && at(left) < cut) ++left;
-      while (right && left <= right && at(right) >= cut) --right;
-      if (left > right || !right) break;
+      while (left <= right && goes_left(at(left))) ++left;
+      while (right && left <= right && !goes_left(at(right))) --right;
+      if (left > right || !right) break;  // "!right": nanoflann's guard for unsigned offsets
       std::swap(e[left], e[right]);
       ++left;
       --right;
     }
-    const Offset lim1 = left;
-    right = count - 1;
-    for (;;) {
-      while (left <= right && at(left) <= cut) ++left;
-      while (right && left <= right && at(right) > cut) --right;
-      if (left > right || !right) break;
-      std::swap(e[left], e[right]);
-      ++left;
-      --right;
-    }
-    return {lim1, left};
+    return left;
   }
 
   NanoflannTree& tree_;
